@@ -1,0 +1,75 @@
+//! One error type for the library. Every variant that comes from user input names the file
+//! (or other source) and, where there is one, the line or field, and what was expected.
+
+use std::path::PathBuf;
+
+/// Result alias used across the crate.
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// A file could not be opened or read.
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+
+    /// A shipped data file does not have the checksum it was published with.
+    #[error(
+        "{path}: sha256 is {actual}, expected {expected}; the file is not the original \
+         (truncated, corrupted or modified copy): restore it byte-identical"
+    )]
+    Checksum {
+        path: PathBuf,
+        expected: String,
+        actual: String,
+    },
+
+    /// A syntax or structure error at a known place in a text file (JSON, XML, CSV, TOML).
+    #[error("{source_name}: line {line}, column {column}: {message}")]
+    Parse {
+        source_name: String,
+        line: usize,
+        column: usize,
+        message: String,
+    },
+
+    /// Well-formed input whose content is not what rtr can use (a NaN coordinate, a negative
+    /// length, a map element rtr does not support). `source_name` names the file or generator,
+    /// `place` the record or field.
+    #[error("{source_name}: {place}: {message}")]
+    InvalidData {
+        source_name: String,
+        place: String,
+        message: String,
+    },
+
+    /// A command-line value or configuration value that is out of range.
+    #[error("invalid argument: {0}")]
+    InvalidArgument(String),
+}
+
+impl Error {
+    /// Wraps an I/O error with the path it happened on.
+    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        Error::Io {
+            path: path.into(),
+            source,
+        }
+    }
+
+    /// Shorthand for [`Error::InvalidData`].
+    pub fn invalid(
+        source_name: impl Into<String>,
+        place: impl Into<String>,
+        message: impl Into<String>,
+    ) -> Self {
+        Error::InvalidData {
+            source_name: source_name.into(),
+            place: place.into(),
+            message: message.into(),
+        }
+    }
+}
