@@ -5,5 +5,6 @@
 
 pub mod error;
 pub mod geometry;
+pub mod map;
 
 pub use error::{Error, Result};

@@ -1,0 +1,685 @@
+//! Reads an OpenDRIVE document into [`OpenDrive`]. Every error names the source, the line and
+//! column of the offending element, the attribute and what was expected.
+//!
+//! Elements that do not change the driving geometry (header, userData, material, objects,
+//! signals, elevation and lateral profiles, surface, rule, access, height, visibility, and any
+//! other element we do not know) are skipped silently. Unknown children where they *would*
+//! change the geometry are errors: a plan-view geometry other than the five supported ones, and
+//! lanes described by `<border>` instead of `<width>`.
+
+use roxmltree::{Document, Node};
+
+use super::opendrive::*;
+use crate::{Error, Result};
+
+/// Parses OpenDRIVE text; `source_name` (usually the file path) is used in error messages.
+pub fn parse_xodr(text: &str, source_name: &str) -> Result<OpenDrive> {
+    let doc = Document::parse(text).map_err(|e| {
+        let pos = e.pos();
+        Error::Parse {
+            source_name: source_name.to_string(),
+            line: pos.row as usize,
+            column: pos.col as usize,
+            message: format!("not well-formed XML: {e}"),
+        }
+    })?;
+    let cx = Ctx {
+        source: source_name,
+        doc: &doc,
+    };
+    let root = doc.root_element();
+    if root.tag_name().name() != "OpenDRIVE" {
+        return Err(cx.err(
+            root,
+            format!(
+                "root element is <{}>, expected <OpenDRIVE>",
+                root.tag_name().name()
+            ),
+        ));
+    }
+    let mut out = OpenDrive::default();
+    for child in root.children().filter(Node::is_element) {
+        match child.tag_name().name() {
+            "road" => out.roads.push(cx.road(child)?),
+            "junction" => out.junctions.push(cx.junction(child)?),
+            _ => {}
+        }
+    }
+    Ok(out)
+}
+
+struct Ctx<'a, 'input> {
+    source: &'a str,
+    doc: &'a Document<'input>,
+}
+
+fn elements<'a, 'input>(
+    node: Node<'a, 'input>,
+    name: &'a str,
+) -> impl Iterator<Item = Node<'a, 'input>> {
+    node.children()
+        .filter(move |c| c.is_element() && c.tag_name().name() == name)
+}
+
+fn element<'a, 'input>(node: Node<'a, 'input>, name: &str) -> Option<Node<'a, 'input>> {
+    node.children()
+        .find(|c| c.is_element() && c.tag_name().name() == name)
+}
+
+fn sort_by_s<T>(v: &mut [T], s: impl Fn(&T) -> f64) {
+    v.sort_by(|a, b| s(a).total_cmp(&s(b)));
+}
+
+impl Ctx<'_, '_> {
+    fn err(&self, node: Node, message: impl Into<String>) -> Error {
+        let pos = self.doc.text_pos_at(node.range().start);
+        Error::Parse {
+            source_name: self.source.to_string(),
+            line: pos.row as usize,
+            column: pos.col as usize,
+            message: message.into(),
+        }
+    }
+
+    fn req_str<'n>(&self, node: Node<'n, '_>, name: &str) -> Result<&'n str> {
+        node.attribute(name).ok_or_else(|| {
+            self.err(
+                node,
+                format!(
+                    "<{}> is missing required attribute `{name}`",
+                    node.tag_name().name()
+                ),
+            )
+        })
+    }
+
+    fn number(&self, node: Node, name: &str, raw: &str) -> Result<f64> {
+        match raw.trim().parse::<f64>() {
+            Ok(v) if v.is_finite() => Ok(v),
+            _ => Err(self.err(
+                node,
+                format!(
+                    "<{}> attribute `{name}`: expected a finite number, found {raw:?}",
+                    node.tag_name().name()
+                ),
+            )),
+        }
+    }
+
+    fn req_f64(&self, node: Node, name: &str) -> Result<f64> {
+        let raw = self.req_str(node, name)?;
+        self.number(node, name, raw)
+    }
+
+    fn opt_f64(&self, node: Node, name: &str) -> Result<Option<f64>> {
+        node.attribute(name)
+            .map(|raw| self.number(node, name, raw))
+            .transpose()
+    }
+
+    fn non_negative(&self, node: Node, name: &str) -> Result<f64> {
+        let v = self.req_f64(node, name)?;
+        if v < 0.0 {
+            return Err(self.err(
+                node,
+                format!(
+                    "<{}> attribute `{name}` is {v}, expected a value >= 0",
+                    node.tag_name().name()
+                ),
+            ));
+        }
+        Ok(v)
+    }
+
+    fn req_i32(&self, node: Node, name: &str) -> Result<i32> {
+        let raw = self.req_str(node, name)?;
+        raw.trim().parse::<i32>().map_err(|_| {
+            self.err(
+                node,
+                format!(
+                    "<{}> attribute `{name}`: expected an integer, found {raw:?}",
+                    node.tag_name().name()
+                ),
+            )
+        })
+    }
+
+    fn contact_point(&self, node: Node, name: &str) -> Result<Option<ContactPoint>> {
+        match node.attribute(name) {
+            None => Ok(None),
+            Some("start") => Ok(Some(ContactPoint::Start)),
+            Some("end") => Ok(Some(ContactPoint::End)),
+            Some(other) => Err(self.err(
+                node,
+                format!(
+                    "<{}> attribute `{name}`: expected \"start\" or \"end\", found {other:?}",
+                    node.tag_name().name()
+                ),
+            )),
+        }
+    }
+
+    /// A speed in the given unit, converted to m/s; "no limit" / "undefined" give `None`.
+    fn speed(&self, node: Node) -> Result<Option<f64>> {
+        let raw = self.req_str(node, "max")?;
+        if matches!(raw.trim(), "no limit" | "undefined") {
+            return Ok(None);
+        }
+        let v = self.number(node, "max", raw)?;
+        let factor = match node.attribute("unit").unwrap_or("m/s") {
+            "m/s" => 1.0,
+            "km/h" => 1.0 / 3.6,
+            "mph" => 0.44704,
+            other => {
+                return Err(self.err(
+                    node,
+                    format!(
+                        "<speed> attribute `unit`: expected \"m/s\", \"km/h\" or \"mph\", found {other:?}"
+                    ),
+                ));
+            }
+        };
+        Ok(Some(v * factor))
+    }
+
+    fn road(&self, node: Node) -> Result<Road> {
+        let id = self.req_str(node, "id")?.to_string();
+        let junction = match node.attribute("junction").map(str::trim) {
+            None | Some("-1") | Some("") => None,
+            Some(j) => Some(j.to_string()),
+        };
+        if node.attribute("rule") == Some("LHT") {
+            return Err(self.err(
+                node,
+                format!(
+                    "road {id} has rule=\"LHT\"; rtr supports right-hand traffic only (rule=\"RHT\")"
+                ),
+            ));
+        }
+        let mut road = Road {
+            name: node.attribute("name").unwrap_or("").to_string(),
+            length: self.non_negative(node, "length")?,
+            junction,
+            predecessor: None,
+            successor: None,
+            types: Vec::new(),
+            geometries: Vec::new(),
+            lane_offsets: Vec::new(),
+            lane_sections: Vec::new(),
+            id,
+        };
+        if let Some(link) = element(node, "link") {
+            if let Some(p) = element(link, "predecessor") {
+                road.predecessor = Some(self.road_link(p)?);
+            }
+            if let Some(p) = element(link, "successor") {
+                road.successor = Some(self.road_link(p)?);
+            }
+        }
+        for t in elements(node, "type") {
+            let speed = match element(t, "speed") {
+                Some(sp) => self.speed(sp)?,
+                None => None,
+            };
+            road.types.push(RoadType {
+                s: self.req_f64(t, "s")?,
+                kind: self.req_str(t, "type")?.to_string(),
+                speed,
+            });
+        }
+        sort_by_s(&mut road.types, |t| t.s);
+        let plan_view = element(node, "planView")
+            .ok_or_else(|| self.err(node, format!("road {} has no <planView>", road.id)))?;
+        for g in elements(plan_view, "geometry") {
+            road.geometries.push(self.geometry(g)?);
+        }
+        if road.geometries.is_empty() {
+            return Err(self.err(
+                plan_view,
+                format!("road {}: <planView> has no <geometry>", road.id),
+            ));
+        }
+        sort_by_s(&mut road.geometries, |g| g.s);
+        let lanes = element(node, "lanes")
+            .ok_or_else(|| self.err(node, format!("road {} has no <lanes>", road.id)))?;
+        for o in elements(lanes, "laneOffset") {
+            road.lane_offsets.push(self.poly3(o, "s")?);
+        }
+        sort_by_s(&mut road.lane_offsets, |o| o.s);
+        for sec in elements(lanes, "laneSection") {
+            road.lane_sections.push(self.lane_section(sec)?);
+        }
+        if road.lane_sections.is_empty() {
+            return Err(self.err(
+                lanes,
+                format!("road {}: <lanes> has no <laneSection>", road.id),
+            ));
+        }
+        sort_by_s(&mut road.lane_sections, |s| s.s);
+        Ok(road)
+    }
+
+    fn road_link(&self, node: Node) -> Result<RoadLink> {
+        let element_type = match self.req_str(node, "elementType")? {
+            "road" => ElementType::Road,
+            "junction" => ElementType::Junction,
+            other => {
+                return Err(self.err(
+                    node,
+                    format!(
+                        "<{}> attribute `elementType`: expected \"road\" or \"junction\", found {other:?}",
+                        node.tag_name().name()
+                    ),
+                ));
+            }
+        };
+        let contact_point = self.contact_point(node, "contactPoint")?;
+        if element_type == ElementType::Road && contact_point.is_none() {
+            return Err(self.err(
+                node,
+                format!(
+                    "<{}> links to a road but has no `contactPoint` (expected \"start\" or \"end\")",
+                    node.tag_name().name()
+                ),
+            ));
+        }
+        Ok(RoadLink {
+            element_type,
+            element_id: self.req_str(node, "elementId")?.to_string(),
+            contact_point,
+        })
+    }
+
+    fn poly3(&self, node: Node, s_name: &str) -> Result<Poly3Record> {
+        Ok(Poly3Record {
+            s: self.req_f64(node, s_name)?,
+            a: self.req_f64(node, "a")?,
+            b: self.req_f64(node, "b")?,
+            c: self.req_f64(node, "c")?,
+            d: self.req_f64(node, "d")?,
+        })
+    }
+
+    fn geometry(&self, node: Node) -> Result<Geometry> {
+        let shapes: Vec<Node> = node.children().filter(Node::is_element).collect();
+        let shape = match shapes.as_slice() {
+            [one] => *one,
+            [] => return Err(self.err(node, "<geometry> has no shape child; expected one of line, arc, spiral, poly3, paramPoly3")),
+            [_, second, ..] => return Err(self.err(*second, "<geometry> has more than one shape child; expected exactly one of line, arc, spiral, poly3, paramPoly3")),
+        };
+        let kind = match shape.tag_name().name() {
+            "line" => GeometryKind::Line,
+            "arc" => GeometryKind::Arc {
+                curvature: self.req_f64(shape, "curvature")?,
+            },
+            "spiral" => GeometryKind::Spiral {
+                curv_start: self.req_f64(shape, "curvStart")?,
+                curv_end: self.req_f64(shape, "curvEnd")?,
+            },
+            "poly3" => GeometryKind::Poly3 {
+                a: self.req_f64(shape, "a")?,
+                b: self.req_f64(shape, "b")?,
+                c: self.req_f64(shape, "c")?,
+                d: self.req_f64(shape, "d")?,
+            },
+            "paramPoly3" => {
+                let mut u = [0.0; 4];
+                let mut v = [0.0; 4];
+                for (i, k) in ["a", "b", "c", "d"].iter().enumerate() {
+                    u[i] = self.req_f64(shape, &format!("{k}U"))?;
+                    v[i] = self.req_f64(shape, &format!("{k}V"))?;
+                }
+                let p_range = match shape.attribute("pRange") {
+                    None | Some("normalized") => PRange::Normalized,
+                    Some("arcLength") => PRange::ArcLength,
+                    Some(other) => {
+                        return Err(self.err(
+                            shape,
+                            format!(
+                                "<paramPoly3> attribute `pRange`: expected \"arcLength\" or \"normalized\", found {other:?}"
+                            ),
+                        ));
+                    }
+                };
+                GeometryKind::ParamPoly3 { u, v, p_range }
+            }
+            other => {
+                return Err(self.err(
+                    shape,
+                    format!(
+                        "unsupported planView geometry <{other}>; expected one of line, arc, spiral, poly3, paramPoly3"
+                    ),
+                ));
+            }
+        };
+        Ok(Geometry {
+            s: self.req_f64(node, "s")?,
+            x: self.req_f64(node, "x")?,
+            y: self.req_f64(node, "y")?,
+            hdg: self.req_f64(node, "hdg")?,
+            length: self.non_negative(node, "length")?,
+            kind,
+        })
+    }
+
+    fn lane_section(&self, node: Node) -> Result<LaneSection> {
+        let mut sec = LaneSection {
+            s: self.req_f64(node, "s")?,
+            left: Vec::new(),
+            center: None,
+            right: Vec::new(),
+        };
+        for side in node.children().filter(Node::is_element) {
+            let name = side.tag_name().name();
+            for lane_node in elements(side, "lane") {
+                let lane = self.lane(lane_node)?;
+                let ok = match name {
+                    "left" => lane.id > 0,
+                    "right" => lane.id < 0,
+                    "center" => lane.id == 0,
+                    _ => true,
+                };
+                if !ok {
+                    return Err(self.err(
+                        lane_node,
+                        format!(
+                            "lane id {} in <{name}>; expected positive ids in <left>, 0 in <center>, negative in <right>",
+                            lane.id
+                        ),
+                    ));
+                }
+                match name {
+                    "left" => sec.left.push(lane),
+                    "right" => sec.right.push(lane),
+                    "center" => sec.center = Some(lane),
+                    _ => {}
+                }
+            }
+        }
+        sec.left.sort_by_key(|l| l.id);
+        sec.right.sort_by_key(|l| -l.id);
+        for side in [&sec.left, &sec.right] {
+            for (k, lane) in side.iter().enumerate() {
+                if lane.id.unsigned_abs() as usize != k + 1 {
+                    return Err(self.err(
+                        node,
+                        format!(
+                            "laneSection at s={}: lane ids on one side must be consecutive from ±1, found {}",
+                            sec.s,
+                            side.iter().map(|l| l.id.to_string()).collect::<Vec<_>>().join(", ")
+                        ),
+                    ));
+                }
+            }
+        }
+        Ok(sec)
+    }
+
+    fn lane(&self, node: Node) -> Result<Lane> {
+        let id = self.req_i32(node, "id")?;
+        let mut lane = Lane {
+            id,
+            kind: LaneType::from_name(self.req_str(node, "type")?),
+            widths: Vec::new(),
+            road_marks: Vec::new(),
+            speeds: Vec::new(),
+            predecessors: Vec::new(),
+            successors: Vec::new(),
+        };
+        for child in node.children().filter(Node::is_element) {
+            match child.tag_name().name() {
+                "width" => lane.widths.push(self.poly3(child, "sOffset")?),
+                "border" => {
+                    return Err(self.err(
+                        child,
+                        format!(
+                            "lane {id} is described by <border>, which rtr does not support; expected <width> records"
+                        ),
+                    ));
+                }
+                "roadMark" => lane.road_marks.push(RoadMarkRecord {
+                    s_offset: self.req_f64(child, "sOffset")?,
+                    kind: RoadMark::from_name(self.req_str(child, "type")?),
+                    color: child.attribute("color").map(str::to_string),
+                    width: self.opt_f64(child, "width")?,
+                }),
+                "speed" => lane.speeds.push(LaneSpeed {
+                    s_offset: self.req_f64(child, "sOffset")?,
+                    max: self.speed(child)?,
+                }),
+                "link" => {
+                    for p in elements(child, "predecessor") {
+                        lane.predecessors.push(self.req_i32(p, "id")?);
+                    }
+                    for p in elements(child, "successor") {
+                        lane.successors.push(self.req_i32(p, "id")?);
+                    }
+                }
+                _ => {}
+            }
+        }
+        if id != 0 && lane.widths.is_empty() {
+            return Err(self.err(node, format!("lane {id} has no <width> record")));
+        }
+        sort_by_s(&mut lane.widths, |w| w.s);
+        sort_by_s(&mut lane.road_marks, |m| m.s_offset);
+        sort_by_s(&mut lane.speeds, |m| m.s_offset);
+        Ok(lane)
+    }
+
+    fn junction(&self, node: Node) -> Result<Junction> {
+        let mut j = Junction {
+            id: self.req_str(node, "id")?.to_string(),
+            name: node.attribute("name").unwrap_or("").to_string(),
+            connections: Vec::new(),
+        };
+        for c in elements(node, "connection") {
+            let contact_point = self.contact_point(c, "contactPoint")?.ok_or_else(|| {
+                self.err(
+                    c,
+                    "<connection> is missing required attribute `contactPoint` (expected \"start\" or \"end\")",
+                )
+            })?;
+            let mut lane_links = Vec::new();
+            for l in elements(c, "laneLink") {
+                lane_links.push((self.req_i32(l, "from")?, self.req_i32(l, "to")?));
+            }
+            j.connections.push(Connection {
+                id: self.req_str(c, "id")?.to_string(),
+                incoming_road: self.req_str(c, "incomingRoad")?.to_string(),
+                connecting_road: self.req_str(c, "connectingRoad")?.to_string(),
+                contact_point,
+                lane_links,
+            });
+        }
+        Ok(j)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::map::to_xodr;
+
+    const A9: &str = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/data/automatum-a9/staticWorld.xodr"
+    );
+
+    fn a9_text() -> String {
+        std::fs::read_to_string(A9).expect("A9 map is present")
+    }
+
+    /// The parse error for `text`: (line, message).
+    fn parse_err(text: &str) -> (usize, String) {
+        match parse_xodr(text, "test.xodr") {
+            Err(Error::Parse {
+                source_name,
+                line,
+                message,
+                ..
+            }) => {
+                assert_eq!(source_name, "test.xodr");
+                (line, message)
+            }
+            other => panic!("expected a parse error, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn reads_the_a9_map() {
+        let od = parse_xodr(&a9_text(), "a9").expect("parses");
+        assert_eq!(od.roads.len(), 1);
+        let r = &od.roads[0];
+        assert_eq!((r.id.as_str(), r.length), ("0", 266.281170003393));
+        assert!(
+            matches!(r.geometries[0].kind, GeometryKind::Arc { curvature } if curvature == -0.000322282793482797)
+        );
+        let sec = &r.lane_sections[0];
+        assert_eq!(
+            sec.left.iter().map(|l| l.id).collect::<Vec<_>>(),
+            vec![1, 2, 3, 4, 5]
+        );
+        assert_eq!(
+            sec.right.iter().map(|l| l.id).collect::<Vec<_>>(),
+            vec![-1, -2, -3, -4, -5]
+        );
+        assert_eq!(sec.right[0].kind, LaneType::None);
+        assert_eq!(sec.right[4].kind, LaneType::Shoulder);
+        assert_eq!(sec.right[1].road_marks[0].kind, RoadMark::Broken);
+        assert_eq!(sec.right[1].speeds[0].max, Some(100.0 / 3.6));
+        assert_eq!(r.types[0].speed, Some(100.0 / 3.6));
+        assert_eq!(sec.right[2].widths[0].a, 3.6);
+    }
+
+    #[test]
+    fn round_trips_through_the_writer() {
+        let od = parse_xodr(&a9_text(), "a9").expect("parses");
+        let again = parse_xodr(&to_xodr(&od), "written").expect("written map parses");
+        assert_eq!(od, again);
+    }
+
+    #[test]
+    fn unsupported_geometry_names_element_and_line() {
+        let text = a9_text().replace(
+            "<arc curvature=\"-0.000322282793482797\" />",
+            "<cubic k=\"1\"/>",
+        );
+        let (line, msg) = parse_err(&text);
+        assert_eq!(line, 12);
+        assert!(
+            msg.contains("unsupported planView geometry <cubic>"),
+            "{msg}"
+        );
+        assert!(
+            msg.contains("line, arc, spiral, poly3, paramPoly3"),
+            "{msg}"
+        );
+    }
+
+    #[test]
+    fn bad_numbers_name_element_attribute_and_line() {
+        let text = a9_text().replace(
+            "length=\"266.281170003393\" id=\"0\"",
+            "length=\"abc\" id=\"0\"",
+        );
+        let (line, msg) = parse_err(&text);
+        assert_eq!(line, 6);
+        assert!(
+            msg.contains("<road> attribute `length`") && msg.contains("\"abc\""),
+            "{msg}"
+        );
+        for bad in ["NaN", "inf", "-inf"] {
+            let text = a9_text().replace("a=\"3.6\"", &format!("a=\"{bad}\""));
+            let (_, msg) = parse_err(&text);
+            assert!(
+                msg.contains("<width> attribute `a`") && msg.contains("finite"),
+                "{msg}"
+            );
+        }
+        let text = a9_text().replace("hdg=\"1.60149666833748\" ", "");
+        let (line, msg) = parse_err(&text);
+        assert_eq!(line, 11);
+        assert!(
+            msg.contains("<geometry> is missing required attribute `hdg`"),
+            "{msg}"
+        );
+        let text = a9_text().replace("id=\"-3\"", "id=\"minus three\"");
+        assert!(parse_err(&text).1.contains("expected an integer"));
+    }
+
+    #[test]
+    fn border_lanes_and_bad_structure_are_errors() {
+        let text = a9_text().replace(
+            "<width sOffset=\"0\" a=\"3.6\" b=\"0\" c=\"0\" d=\"0\" />",
+            "<border sOffset=\"0\" a=\"3.6\" b=\"0\" c=\"0\" d=\"0\" />",
+        );
+        let (_, msg) = parse_err(&text);
+        assert!(msg.contains("lane -3 is described by <border>"), "{msg}");
+        assert!(
+            parse_err("<OpenDRIVE><road")
+                .1
+                .contains("not well-formed XML")
+        );
+        assert!(parse_err("<map/>").1.contains("expected <OpenDRIVE>"));
+        let text = a9_text().replace(
+            "unit=\"km/h\" />\n        </type>",
+            "unit=\"furlongs\" />\n        </type>",
+        );
+        assert!(parse_err(&text).1.contains("`unit`"));
+        let text = a9_text().replace("<lane id=\"-3\"", "<lane id=\"-7\"");
+        assert!(parse_err(&text).1.contains("consecutive"));
+    }
+
+    #[test]
+    fn reads_links_junctions_and_other_geometries() {
+        let text = r#"<OpenDRIVE><header/>
+<road id="a" length="30" junction="-1">
+ <link><predecessor elementType="junction" elementId="j"/>
+       <successor elementType="road" elementId="b" contactPoint="end"/></link>
+ <type s="0" type="motorway"><speed max="60" unit="mph"/></type>
+ <planView>
+  <geometry s="0" x="0" y="0" hdg="0" length="10"><spiral curvStart="0" curvEnd="0.01"/></geometry>
+  <geometry s="10" x="10" y="0" hdg="0" length="10"><poly3 a="0" b="0" c="0.001" d="0"/></geometry>
+  <geometry s="20" x="20" y="0" hdg="0" length="10"><paramPoly3 aU="0" bU="10" cU="0" dU="0" aV="0" bV="0" cV="1" dV="0" pRange="arcLength"/></geometry>
+ </planView>
+ <elevationProfile><elevation s="0" a="0" b="0" c="0" d="0"/></elevationProfile>
+ <lanes><laneSection s="0"><center><lane id="0" type="none"/></center>
+  <right><lane id="-1" type="onRamp"><link><predecessor id="-2"/><successor id="-1"/></link>
+   <width sOffset="0" a="3" b="0" c="0" d="0"/><speed sOffset="0" max="no limit"/></lane></right>
+ </laneSection></lanes>
+</road>
+<junction id="j" name="x"><connection id="0" incomingRoad="a" connectingRoad="c" contactPoint="end">
+ <laneLink from="-1" to="1"/></connection></junction>
+</OpenDRIVE>"#;
+        let od = parse_xodr(text, "t").expect("parses");
+        let r = &od.roads[0];
+        assert_eq!(
+            r.successor.as_ref().and_then(|l| l.contact_point),
+            Some(ContactPoint::End)
+        );
+        assert_eq!(
+            r.predecessor.as_ref().map(|l| l.element_type),
+            Some(ElementType::Junction)
+        );
+        assert!((r.types[0].speed.unwrap_or(0.0) - 60.0 * 0.44704).abs() < 1e-12);
+        assert!(matches!(
+            r.geometries[2].kind,
+            GeometryKind::ParamPoly3 {
+                p_range: PRange::ArcLength,
+                ..
+            }
+        ));
+        let lane = &r.lane_sections[0].right[0];
+        assert_eq!(
+            (lane.predecessors.clone(), lane.successors.clone()),
+            (vec![-2], vec![-1])
+        );
+        assert_eq!(lane.speeds[0].max, None);
+        assert_eq!(lane.kind, LaneType::OnRamp);
+        assert_eq!(od.junctions[0].connections[0].lane_links, vec![(-1, 1)]);
+        assert_eq!(parse_xodr(&to_xodr(&od), "again").expect("round trip"), od);
+        let no_contact = text.replace(" contactPoint=\"end\"/></link>", "/></link>");
+        assert!(parse_err(&no_contact).1.contains("contactPoint"));
+    }
+}
