@@ -1,8 +1,10 @@
 //! Road maps: an OpenDRIVE subset (parse, write, procedural generation), its lanes sampled
 //! into polylines with topology, on-road and lane queries, and the paper's lane graph.
 //!
-//! Real and generated maps share one path: [`OpenDrive`] -> [`Map::from_opendrive`].
+//! Real and generated maps share one path: [`OpenDrive`] -> [`Map::from_opendrive`] ->
+//! [`LaneGraph::build`].
 
+mod lane_graph;
 mod lanes;
 mod lateral;
 mod opendrive;
@@ -15,16 +17,18 @@ mod xodr_write;
 #[cfg(test)]
 mod test_maps;
 
+pub use lane_graph::{
+    LANE_NODE_FEATURE_NAMES, LANE_NODE_FEATURES, LaneGraph, LaneNode, NeighbourTable,
+    mark_category, neighbour_table,
+};
 pub use lanes::{DEFAULT_SPEED_LIMIT, Lane, Map, SAMPLE_SPACING};
 pub use opendrive::Lane as OdLane;
 pub use opendrive::{
     Connection, ContactPoint, ElementType, Geometry, GeometryKind, Junction, LaneSection,
-    LaneSpeed, LaneType, OpenDrive, PRange, Poly3Record, Road, RoadLink, RoadMark,
-    RoadMarkRecord, RoadType,
+    LaneSpeed, LaneType, OpenDrive, PRange, Poly3Record, Road, RoadLink, RoadMark, RoadMarkRecord,
+    RoadType,
 };
-pub use query::{
-    BEYOND_END_RANGE, BOX_OUTLINE_SPACING, BoxOnRoad, LaneProjection, PointLocation,
-};
+pub use query::{BEYOND_END_RANGE, BOX_OUTLINE_SPACING, BoxOnRoad, LaneProjection, PointLocation};
 pub use reference_line::{RefPoint, eval_road};
 pub use xodr_parse::parse_xodr;
 pub use xodr_write::to_xodr;
