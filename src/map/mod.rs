@@ -8,12 +8,16 @@ mod lane_graph;
 mod lanes;
 mod lateral;
 mod opendrive;
+mod procedural;
+mod procedural_ramps;
 mod query;
 mod reference_line;
 mod topology;
 mod xodr_parse;
 mod xodr_write;
 
+#[cfg(test)]
+mod procedural_tests;
 #[cfg(test)]
 mod test_maps;
 
@@ -27,6 +31,10 @@ pub use opendrive::{
     Connection, ContactPoint, ElementType, Geometry, GeometryKind, Junction, LaneSection,
     LaneSpeed, LaneType, OpenDrive, PRange, Poly3Record, Road, RoadLink, RoadMark, RoadMarkRecord,
     RoadType,
+};
+pub use procedural::{
+    JUNCTION_LENGTH, Layout, PROCEDURAL_SPEED_LIMIT, ProceduralMap, SHOULDER_WIDTH, curve,
+    lane_drop, off_ramp_fork, on_ramp_merge, straight,
 };
 pub use query::{BEYOND_END_RANGE, BOX_OUTLINE_SPACING, BoxOnRoad, LaneProjection, PointLocation};
 pub use reference_line::{RefPoint, eval_road};

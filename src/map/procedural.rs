@@ -1,0 +1,539 @@
+//! Procedural highway maps. Each generator produces an [`OpenDrive`] (so generated maps take
+//! the same path as real ones through [`Map::from_opendrive`](super::Map::from_opendrive), and
+//! can be written with [`to_xodr`](super::to_xodr) and opened in any OpenDRIVE viewer).
+//!
+//! Layout conventions: a carriageway lies right of its reference line (right-hand traffic,
+//! lanes -1, -2, ... travel along +s), driving lanes are separated by broken marks, the
+//! outermost driving lane has a solid outer mark, and a shoulder runs along the outside.
+//! Ramp and lane-drop maps are one-way; straight and curved roads can also be A9-like divided
+//! roads (two carriageways around a median of type `none`).
+
+use serde::{Deserialize, Serialize};
+
+use super::opendrive::{
+    ContactPoint, ElementType, Geometry, GeometryKind, Lane, LaneSection, LaneType, OpenDrive,
+    Poly3Record, Road, RoadLink, RoadMark, RoadMarkRecord, RoadType,
+};
+use super::procedural_ramps::{lane_drop_map, off_ramp_map, on_ramp_map};
+use crate::{Error, Result};
+
+/// Width of the shoulder outside each carriageway (m).
+pub const SHOULDER_WIDTH: f64 = 2.5;
+/// Speed limit written into generated roads (120 km/h in m/s).
+pub const PROCEDURAL_SPEED_LIMIT: f64 = 120.0 / 3.6;
+/// Length of the connecting roads inside generated junctions (m).
+pub const JUNCTION_LENGTH: f64 = 5.0;
+
+/// Cross-section of straight and curved roads.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, Default)]
+#[serde(tag = "type", rename_all = "snake_case")]
+pub enum Layout {
+    /// One carriageway; all lanes travel along the reference line.
+    #[default]
+    OneWay,
+    /// Two carriageways (`lanes` each) separated by a median of type `none`, like the A9.
+    Divided { median_width: f64 },
+}
+
+/// Parameters of one generated map; lengths in metres, curvature in 1/m.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum ProceduralMap {
+    Straight {
+        lanes: usize,
+        lane_width: f64,
+        length: f64,
+        #[serde(default)]
+        layout: Layout,
+    },
+    /// Line, clothoid into an arc of `curvature`, clothoid out, line.
+    Curve {
+        lanes: usize,
+        lane_width: f64,
+        length: f64,
+        curvature: f64,
+        #[serde(default)]
+        layout: Layout,
+    },
+    /// A ramp road joins at `merge_s` through a junction into an acceleration lane that runs
+    /// `accel_lane_length` and then tapers to zero width over `taper_length`.
+    OnRampMerge {
+        lanes: usize,
+        lane_width: f64,
+        length: f64,
+        merge_s: f64,
+        accel_lane_length: f64,
+        taper_length: f64,
+    },
+    /// An exit lane opens over `taper_length`, runs `decel_lane_length`, and at `diverge_s` a
+    /// junction forks it onto a ramp road curving away from the main road.
+    OffRampFork {
+        lanes: usize,
+        lane_width: f64,
+        length: f64,
+        diverge_s: f64,
+        decel_lane_length: f64,
+        taper_length: f64,
+    },
+    /// The rightmost lane tapers to zero width over `taper_length` from `drop_s`.
+    LaneDrop {
+        lanes: usize,
+        lane_width: f64,
+        length: f64,
+        drop_s: f64,
+        taper_length: f64,
+    },
+}
+
+pub fn straight(lanes: usize, lane_width: f64, length: f64) -> Result<OpenDrive> {
+    ProceduralMap::Straight {
+        lanes,
+        lane_width,
+        length,
+        layout: Layout::OneWay,
+    }
+    .build()
+}
+
+pub fn curve(lanes: usize, lane_width: f64, length: f64, curvature: f64) -> Result<OpenDrive> {
+    ProceduralMap::Curve {
+        lanes,
+        lane_width,
+        length,
+        curvature,
+        layout: Layout::OneWay,
+    }
+    .build()
+}
+
+pub fn on_ramp_merge(
+    lanes: usize,
+    lane_width: f64,
+    length: f64,
+    merge_s: f64,
+    accel_lane_length: f64,
+    taper_length: f64,
+) -> Result<OpenDrive> {
+    ProceduralMap::OnRampMerge {
+        lanes,
+        lane_width,
+        length,
+        merge_s,
+        accel_lane_length,
+        taper_length,
+    }
+    .build()
+}
+
+pub fn off_ramp_fork(
+    lanes: usize,
+    lane_width: f64,
+    length: f64,
+    diverge_s: f64,
+    decel_lane_length: f64,
+    taper_length: f64,
+) -> Result<OpenDrive> {
+    ProceduralMap::OffRampFork {
+        lanes,
+        lane_width,
+        length,
+        diverge_s,
+        decel_lane_length,
+        taper_length,
+    }
+    .build()
+}
+
+pub fn lane_drop(
+    lanes: usize,
+    lane_width: f64,
+    length: f64,
+    drop_s: f64,
+    taper_length: f64,
+) -> Result<OpenDrive> {
+    ProceduralMap::LaneDrop {
+        lanes,
+        lane_width,
+        length,
+        drop_s,
+        taper_length,
+    }
+    .build()
+}
+
+fn bad(message: String) -> Error {
+    Error::InvalidArgument(message)
+}
+
+fn positive(name: &str, v: f64) -> Result<()> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(bad(format!(
+            "procedural map: {name} is {v}, expected a positive number"
+        )))
+    }
+}
+
+fn check_common(lanes: usize, min_lanes: usize, lane_width: f64, length: f64) -> Result<()> {
+    if lanes < min_lanes || lanes > 20 {
+        return Err(bad(format!(
+            "procedural map: lanes is {lanes}, expected {min_lanes} to 20"
+        )));
+    }
+    positive("lane_width", lane_width)?;
+    if lane_width > 10.0 {
+        return Err(bad(format!(
+            "procedural map: lane_width is {lane_width} m, expected at most 10 m"
+        )));
+    }
+    positive("length", length)
+}
+
+/// Checks that `parts` (name, value) are positive and end before `length`.
+fn check_fits(length: f64, parts: &[(&str, f64)]) -> Result<()> {
+    for (name, v) in parts {
+        positive(name, *v)?;
+    }
+    let total: f64 = parts.iter().map(|p| p.1).sum();
+    if total >= length {
+        let names: Vec<&str> = parts.iter().map(|p| p.0).collect();
+        return Err(bad(format!(
+            "procedural map: {} add up to {total} m, expected less than length {length} m",
+            names.join(" + ")
+        )));
+    }
+    Ok(())
+}
+
+impl ProceduralMap {
+    /// Validates the parameters and generates the map.
+    pub fn build(&self) -> Result<OpenDrive> {
+        match *self {
+            ProceduralMap::Straight {
+                lanes,
+                lane_width,
+                length,
+                layout,
+            } => {
+                check_common(lanes, 1, lane_width, length)?;
+                check_layout(layout, lanes, lane_width)?;
+                Ok(single_road(
+                    length,
+                    vec![(length, GeometryKind::Line)],
+                    lanes,
+                    lane_width,
+                    layout,
+                ))
+            }
+            ProceduralMap::Curve {
+                lanes,
+                lane_width,
+                length,
+                curvature,
+                layout,
+            } => {
+                check_common(lanes, 1, lane_width, length)?;
+                let width = check_layout(layout, lanes, lane_width)?;
+                if !curvature.is_finite() || curvature.abs() * width >= 0.5 {
+                    return Err(bad(format!(
+                        "procedural map: curvature {curvature} 1/m is too tight for a {width} m wide road \
+                         (expected |curvature| * width < 0.5)"
+                    )));
+                }
+                let k = curvature;
+                let pieces = vec![
+                    (0.2 * length, GeometryKind::Line),
+                    (
+                        0.15 * length,
+                        GeometryKind::Spiral {
+                            curv_start: 0.0,
+                            curv_end: k,
+                        },
+                    ),
+                    (0.3 * length, GeometryKind::Arc { curvature: k }),
+                    (
+                        0.15 * length,
+                        GeometryKind::Spiral {
+                            curv_start: k,
+                            curv_end: 0.0,
+                        },
+                    ),
+                    (0.2 * length, GeometryKind::Line),
+                ];
+                Ok(single_road(length, pieces, lanes, lane_width, layout))
+            }
+            ProceduralMap::OnRampMerge {
+                lanes,
+                lane_width,
+                length,
+                merge_s,
+                accel_lane_length,
+                taper_length,
+            } => {
+                check_common(lanes, 1, lane_width, length)?;
+                check_fits(
+                    length,
+                    &[
+                        ("merge_s", merge_s),
+                        ("accel_lane_length", accel_lane_length),
+                        ("taper_length", taper_length),
+                    ],
+                )?;
+                Ok(on_ramp_map(
+                    lanes,
+                    lane_width,
+                    length,
+                    merge_s,
+                    accel_lane_length,
+                    taper_length,
+                ))
+            }
+            ProceduralMap::OffRampFork {
+                lanes,
+                lane_width,
+                length,
+                diverge_s,
+                decel_lane_length,
+                taper_length,
+            } => {
+                check_common(lanes, 1, lane_width, length)?;
+                positive("diverge_s", diverge_s)?;
+                check_fits(
+                    diverge_s,
+                    &[
+                        ("decel_lane_length", decel_lane_length),
+                        ("taper_length", taper_length),
+                    ],
+                )?;
+                if diverge_s + JUNCTION_LENGTH >= length {
+                    return Err(bad(format!(
+                        "procedural map: diverge_s {diverge_s} m leaves no road after the junction, expected \
+                         less than length - {JUNCTION_LENGTH} m"
+                    )));
+                }
+                Ok(off_ramp_map(
+                    lanes,
+                    lane_width,
+                    length,
+                    diverge_s,
+                    decel_lane_length,
+                    taper_length,
+                ))
+            }
+            ProceduralMap::LaneDrop {
+                lanes,
+                lane_width,
+                length,
+                drop_s,
+                taper_length,
+            } => {
+                check_common(lanes, 2, lane_width, length)?;
+                check_fits(
+                    length,
+                    &[("drop_s", drop_s), ("taper_length", taper_length)],
+                )?;
+                Ok(lane_drop_map(
+                    lanes,
+                    lane_width,
+                    length,
+                    drop_s,
+                    taper_length,
+                ))
+            }
+        }
+    }
+}
+
+/// Validates the layout; returns the total road width (m).
+fn check_layout(layout: Layout, lanes: usize, lane_width: f64) -> Result<f64> {
+    let side = lanes as f64 * lane_width + SHOULDER_WIDTH;
+    match layout {
+        Layout::OneWay => Ok(side),
+        Layout::Divided { median_width } => {
+            positive("median_width", median_width)?;
+            Ok(2.0 * side + median_width)
+        }
+    }
+}
+
+fn single_road(
+    length: f64,
+    pieces: Vec<(f64, GeometryKind)>,
+    lanes: usize,
+    w: f64,
+    layout: Layout,
+) -> OpenDrive {
+    let mut section = section(0.0, RoadMark::Solid, carriageway(lanes, w, 0));
+    if let Layout::Divided { median_width } = layout {
+        section.center = Some(center_lane(RoadMark::None));
+        let mut right = vec![lane(
+            -1,
+            LaneType::None,
+            constant(0.5 * median_width),
+            RoadMark::Solid,
+        )];
+        right.extend(carriageway(lanes, w, 1));
+        section.left = right.iter().map(mirrored).collect();
+        section.right = right;
+    }
+    OpenDrive {
+        roads: vec![road(
+            "0",
+            length,
+            chain([0.0, 0.0, 0.0], &pieces),
+            vec![section],
+        )],
+        junctions: vec![],
+    }
+}
+
+/// The same lane on the other side of the reference line (positive id).
+fn mirrored(l: &Lane) -> Lane {
+    let mut m = l.clone();
+    m.id = -l.id;
+    m
+}
+
+/// Geometries laid end to end from `start` = [x, y, hdg].
+pub(super) fn chain(start: [f64; 3], pieces: &[(f64, GeometryKind)]) -> Vec<Geometry> {
+    let mut out: Vec<Geometry> = Vec::with_capacity(pieces.len());
+    let (mut s, mut pose) = (0.0, start);
+    for (length, kind) in pieces {
+        let g = Geometry {
+            s,
+            x: pose[0],
+            y: pose[1],
+            hdg: pose[2],
+            length: *length,
+            kind: kind.clone(),
+        };
+        let end = g.eval(*length);
+        pose = [end.x, end.y, end.hdg];
+        s += length;
+        out.push(g);
+    }
+    out
+}
+
+pub(super) fn constant(a: f64) -> Vec<Poly3Record> {
+    vec![Poly3Record {
+        s: 0.0,
+        a,
+        b: 0.0,
+        c: 0.0,
+        d: 0.0,
+    }]
+}
+
+/// Cubic width from `from` to `to` over `len` with zero slope at both ends.
+pub(super) fn taper(from: f64, to: f64, len: f64) -> Vec<Poly3Record> {
+    let dw = to - from;
+    vec![Poly3Record {
+        s: 0.0,
+        a: from,
+        b: 0.0,
+        c: 3.0 * dw / (len * len),
+        d: -2.0 * dw / (len * len * len),
+    }]
+}
+
+pub(super) fn lane(id: i32, kind: LaneType, widths: Vec<Poly3Record>, mark: RoadMark) -> Lane {
+    let painted = mark != RoadMark::None;
+    Lane {
+        id,
+        kind,
+        widths,
+        road_marks: vec![RoadMarkRecord {
+            s_offset: 0.0,
+            kind: mark,
+            color: painted.then(|| "white".to_string()),
+            width: painted.then_some(0.15),
+        }],
+        speeds: vec![],
+        predecessors: vec![],
+        successors: vec![],
+    }
+}
+
+pub(super) fn center_lane(mark: RoadMark) -> Lane {
+    let mut c = lane(0, LaneType::None, vec![], mark);
+    c.widths.clear();
+    c
+}
+
+/// `n` driving lanes (broken marks between them, solid outside) and a shoulder, right of the
+/// reference line, ids starting after `first_id_offset` inner lanes.
+pub(super) fn carriageway(n: usize, w: f64, first_id_offset: usize) -> Vec<Lane> {
+    let mut lanes: Vec<Lane> = (1..=n)
+        .map(|k| {
+            let mark = if k == n {
+                RoadMark::Solid
+            } else {
+                RoadMark::Broken
+            };
+            lane(
+                -((k + first_id_offset) as i32),
+                LaneType::Driving,
+                constant(w),
+                mark,
+            )
+        })
+        .collect();
+    lanes.push(lane(
+        -((n + 1 + first_id_offset) as i32),
+        LaneType::Shoulder,
+        constant(SHOULDER_WIDTH),
+        RoadMark::None,
+    ));
+    lanes
+}
+
+pub(super) fn section(s: f64, center_mark: RoadMark, right: Vec<Lane>) -> LaneSection {
+    LaneSection {
+        s,
+        left: vec![],
+        center: Some(center_lane(center_mark)),
+        right,
+    }
+}
+
+pub(super) fn road(
+    id: &str,
+    length: f64,
+    geometries: Vec<Geometry>,
+    lane_sections: Vec<LaneSection>,
+) -> Road {
+    Road {
+        id: id.to_string(),
+        name: format!("rtr road {id}"),
+        length,
+        junction: None,
+        predecessor: None,
+        successor: None,
+        types: vec![RoadType {
+            s: 0.0,
+            kind: "motorway".to_string(),
+            speed: Some(PROCEDURAL_SPEED_LIMIT),
+        }],
+        geometries,
+        lane_offsets: vec![],
+        lane_sections,
+    }
+}
+
+pub(super) fn road_link(id: &str, contact: ContactPoint) -> Option<RoadLink> {
+    Some(RoadLink {
+        element_type: ElementType::Road,
+        element_id: id.to_string(),
+        contact_point: Some(contact),
+    })
+}
+
+pub(super) fn junction_link(id: &str) -> Option<RoadLink> {
+    Some(RoadLink {
+        element_type: ElementType::Junction,
+        element_id: id.to_string(),
+        contact_point: None,
+    })
+}
