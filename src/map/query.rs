@@ -1,11 +1,13 @@
 //! Geometric queries on a [`Map`]: is a point or a box on the road, and where is a pose
 //! relative to the nearest lane.
 //!
-//! Two parry2d bounding-volume hierarchies keep every query logarithmic in the map size:
-//! - "corridors": one box per reference-line segment, grown by the road's lateral reach there,
-//!   plus one box per open road end covering the strip beyond it. A point's candidates are
-//!   the boxes containing it; per road the nearest candidate segment gives (s, t), and t is
-//!   compared with the lanes' lateral spans at s, evaluated exactly from the polynomials.
+//! parry2d bounding-volume hierarchies keep every query logarithmic in the map size:
+//! - "corridors": one box per 20 m chunk of reference line, grown by the road's lateral reach
+//!   there, plus one box per open road end covering the strip beyond it. The boxes containing
+//!   a point name its candidate roads.
+//! - per road, its reference-line segments, searched best-first for the nearest one, which
+//!   gives (s, t); t is compared with the lanes' lateral spans at s, evaluated exactly from
+//!   the polynomials.
 //! - graph-lane centerline segments, searched best-first for [`Map::lane_projection`].
 
 use parry2d::bounding_volume::{Aabb, BoundingVolume};
@@ -29,6 +31,9 @@ pub const BOX_OUTLINE_SPACING: f64 = 0.5;
 
 /// Extra margin around each corridor box (m), covering the bulge of curved boundaries.
 const CORRIDOR_MARGIN: f64 = 1.0;
+
+/// Reference-line segments per corridor box.
+const CHUNK: usize = 40;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PointLocation {
@@ -67,7 +72,7 @@ pub struct LaneProjection {
 
 #[derive(Clone, Copy, Debug)]
 enum Leaf {
-    Segment { road: usize, seg: usize },
+    Chunk { road: usize },
     OpenEnd { road: usize, at_end: bool },
 }
 
@@ -75,6 +80,8 @@ enum Leaf {
 pub(super) struct RoadIndex {
     corridor: Bvh,
     leaves: Vec<Leaf>,
+    /// Per road: its reference-line segments.
+    segments: Vec<Bvh>,
     centerlines: Bvh,
     /// (lane, segment) of each centerline leaf.
     center_segments: Vec<(usize, usize)>,
@@ -125,15 +132,23 @@ impl RoadIndex {
     ) -> Self {
         let mut boxes = Vec::new();
         let mut leaves = Vec::new();
+        let mut segments = Vec::with_capacity(od.roads.len());
         for (r, (road, samples)) in od.roads.iter().zip(roads).enumerate() {
             let pts: Vec<[f64; 2]> = samples.points.iter().map(|p| [p.x, p.y]).collect();
             let reaches: Vec<f64> = samples.s.iter().map(|&s| reach(road, s)).collect();
-            for seg in 0..pts.len().saturating_sub(1) {
-                let grow = reaches[seg].max(reaches[seg + 1]) + CORRIDOR_MARGIN;
-                let aabb = Aabb::from_points([v(pts[seg]), v(pts[seg + 1])]);
-                boxes.push(aabb.loosened(grow));
-                leaves.push(Leaf::Segment { road: r, seg });
+            let seg_boxes: Vec<Aabb> = pts
+                .windows(2)
+                .map(|w| Aabb::from_points([v(w[0]), v(w[1])]))
+                .collect();
+            for first in (0..seg_boxes.len()).step_by(CHUNK) {
+                let last = (first + CHUNK).min(seg_boxes.len());
+                let grow =
+                    reaches[first..=last].iter().fold(0.0f64, |a, &b| a.max(b)) + CORRIDOR_MARGIN;
+                let chunk = Aabb::from_points(pts[first..=last].iter().map(|&p| v(p)));
+                boxes.push(chunk.loosened(grow));
+                leaves.push(Leaf::Chunk { road: r });
             }
+            segments.push(Bvh::from_leaves(BvhBuildStrategy::Binned, &seg_boxes));
             for (at_end, open) in [(false, !connected[r][0]), (true, !connected[r][1])] {
                 let (Some(first), Some(last)) = (samples.points.first(), samples.points.last())
                 else {
@@ -165,6 +180,7 @@ impl RoadIndex {
         RoadIndex {
             corridor,
             leaves,
+            segments,
             centerlines,
             center_segments,
         }
@@ -178,20 +194,14 @@ impl Map {
             return PointLocation::OffRoad;
         }
         let od = self.opendrive();
-        // Nearest candidate segment per road: (road, segment, distance).
-        let mut nearest: Vec<(usize, usize, f64)> = Vec::new();
+        let mut candidates: Vec<usize> = Vec::new();
         let mut beyond = false;
         let idx = &self.index;
         for leaf in idx.corridor.leaves(|n| n.aabb().contains_local_point(v(p))) {
             match idx.leaves[leaf as usize] {
-                Leaf::Segment { road, seg } => {
-                    let pts = &self.roads[road].points;
-                    let (a, b) = ([pts[seg].x, pts[seg].y], [pts[seg + 1].x, pts[seg + 1].y]);
-                    let (_, d) = segment_foot(a, b, p);
-                    match nearest.iter_mut().find(|n| n.0 == road) {
-                        Some(n) if d < n.2 => *n = (road, seg, d),
-                        Some(_) => {}
-                        None => nearest.push((road, seg, d)),
+                Leaf::Chunk { road } => {
+                    if !candidates.contains(&road) {
+                        candidates.push(road);
                     }
                 }
                 Leaf::OpenEnd { road, at_end } => {
@@ -199,6 +209,19 @@ impl Map {
                 }
             }
         }
+        // Nearest reference-line segment per candidate road: (road, segment, distance).
+        let nearest = candidates.into_iter().filter_map(|road| {
+            let pts = &self.roads[road].points;
+            let (seg, d) = idx.segments[road].find_best(
+                f64::MAX,
+                |node, _| node.aabb().distance_to_local_point(v(p), true),
+                |seg, _| {
+                    let (a, b) = (&pts[seg as usize], &pts[seg as usize + 1]);
+                    Some(segment_foot([a.x, a.y], [b.x, b.y], p).1)
+                },
+            )?;
+            Some((road, seg as usize, d))
+        });
         for (road, seg, dist) in nearest {
             let samples = &self.roads[road];
             let (pa, pb) = (&samples.points[seg], &samples.points[seg + 1]);
