@@ -9,6 +9,7 @@ mod lanes;
 mod lateral;
 mod opendrive;
 mod procedural;
+mod procedural_parts;
 mod procedural_ramps;
 mod query;
 mod reference_line;
@@ -20,6 +21,8 @@ mod xodr_write;
 mod procedural_tests;
 #[cfg(test)]
 mod test_maps;
+#[cfg(test)]
+mod xodr_parse_tests;
 
 pub use lane_graph::{
     LANE_NODE_FEATURE_NAMES, LANE_NODE_FEATURES, LaneGraph, LaneNode, NeighbourTable,

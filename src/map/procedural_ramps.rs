@@ -8,9 +8,9 @@
 use super::opendrive::{
     Connection, ContactPoint, GeometryKind, Junction, Lane, LaneType, OpenDrive, RoadMark,
 };
-use super::procedural::{
-    JUNCTION_LENGTH, SHOULDER_WIDTH, carriageway, chain, constant, junction_link, lane, road,
-    road_link, section, taper,
+use super::procedural::{JUNCTION_LENGTH, SHOULDER_WIDTH};
+use super::procedural_parts::{
+    carriageway, chain, constant, junction_link, lane, road, road_link, section, taper,
 };
 
 /// Ramp shape: leaves the main direction by `RAMP_ANGLE` through an arc of `RAMP_RADIUS`,

@@ -1,0 +1,188 @@
+//! Tests of the OpenDRIVE reader and writer on the A9 map and small hand-written documents.
+
+use super::opendrive::*;
+use super::to_xodr;
+use super::xodr_parse::parse_xodr;
+use crate::Error;
+
+const A9: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/data/automatum-a9/staticWorld.xodr"
+);
+
+fn a9_text() -> String {
+    std::fs::read_to_string(A9).expect("A9 map is present")
+}
+
+/// The parse error for `text`: (line, message).
+fn parse_err(text: &str) -> (usize, String) {
+    match parse_xodr(text, "test.xodr") {
+        Err(Error::Parse {
+            source_name,
+            line,
+            message,
+            ..
+        }) => {
+            assert_eq!(source_name, "test.xodr");
+            (line, message)
+        }
+        other => panic!("expected a parse error, got {other:?}"),
+    }
+}
+
+#[test]
+fn reads_the_a9_map() {
+    let od = parse_xodr(&a9_text(), "a9").expect("parses");
+    assert_eq!(od.roads.len(), 1);
+    let r = &od.roads[0];
+    assert_eq!((r.id.as_str(), r.length), ("0", 266.281170003393));
+    assert!(
+        matches!(r.geometries[0].kind, GeometryKind::Arc { curvature } if curvature == -0.000322282793482797)
+    );
+    let sec = &r.lane_sections[0];
+    assert_eq!(
+        sec.left.iter().map(|l| l.id).collect::<Vec<_>>(),
+        vec![1, 2, 3, 4, 5]
+    );
+    assert_eq!(
+        sec.right.iter().map(|l| l.id).collect::<Vec<_>>(),
+        vec![-1, -2, -3, -4, -5]
+    );
+    assert_eq!(sec.right[0].kind, LaneType::None);
+    assert_eq!(sec.right[4].kind, LaneType::Shoulder);
+    assert_eq!(sec.right[1].road_marks[0].kind, RoadMark::Broken);
+    assert_eq!(sec.right[1].speeds[0].max, Some(100.0 / 3.6));
+    assert_eq!(r.types[0].speed, Some(100.0 / 3.6));
+    assert_eq!(sec.right[2].widths[0].a, 3.6);
+}
+
+#[test]
+fn round_trips_through_the_writer() {
+    let od = parse_xodr(&a9_text(), "a9").expect("parses");
+    let again = parse_xodr(&to_xodr(&od), "written").expect("written map parses");
+    assert_eq!(od, again);
+}
+
+#[test]
+fn unsupported_geometry_names_element_and_line() {
+    let text = a9_text().replace(
+        "<arc curvature=\"-0.000322282793482797\" />",
+        "<cubic k=\"1\"/>",
+    );
+    let (line, msg) = parse_err(&text);
+    assert_eq!(line, 12);
+    assert!(
+        msg.contains("unsupported planView geometry <cubic>"),
+        "{msg}"
+    );
+    assert!(
+        msg.contains("line, arc, spiral, poly3, paramPoly3"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn bad_numbers_name_element_attribute_and_line() {
+    let text = a9_text().replace(
+        "length=\"266.281170003393\" id=\"0\"",
+        "length=\"abc\" id=\"0\"",
+    );
+    let (line, msg) = parse_err(&text);
+    assert_eq!(line, 6);
+    assert!(
+        msg.contains("<road> attribute `length`") && msg.contains("\"abc\""),
+        "{msg}"
+    );
+    for bad in ["NaN", "inf", "-inf"] {
+        let text = a9_text().replace("a=\"3.6\"", &format!("a=\"{bad}\""));
+        let (_, msg) = parse_err(&text);
+        assert!(
+            msg.contains("<width> attribute `a`") && msg.contains("finite"),
+            "{msg}"
+        );
+    }
+    let text = a9_text().replace("hdg=\"1.60149666833748\" ", "");
+    let (line, msg) = parse_err(&text);
+    assert_eq!(line, 11);
+    assert!(
+        msg.contains("<geometry> is missing required attribute `hdg`"),
+        "{msg}"
+    );
+    let text = a9_text().replace("id=\"-3\"", "id=\"minus three\"");
+    assert!(parse_err(&text).1.contains("expected an integer"));
+}
+
+#[test]
+fn border_lanes_and_bad_structure_are_errors() {
+    let text = a9_text().replace(
+        "<width sOffset=\"0\" a=\"3.6\" b=\"0\" c=\"0\" d=\"0\" />",
+        "<border sOffset=\"0\" a=\"3.6\" b=\"0\" c=\"0\" d=\"0\" />",
+    );
+    let (_, msg) = parse_err(&text);
+    assert!(msg.contains("lane -3 is described by <border>"), "{msg}");
+    assert!(
+        parse_err("<OpenDRIVE><road")
+            .1
+            .contains("not well-formed XML")
+    );
+    assert!(parse_err("<map/>").1.contains("expected <OpenDRIVE>"));
+    let text = a9_text().replace(
+        "unit=\"km/h\" />\n        </type>",
+        "unit=\"furlongs\" />\n        </type>",
+    );
+    assert!(parse_err(&text).1.contains("`unit`"));
+    let text = a9_text().replace("<lane id=\"-3\"", "<lane id=\"-7\"");
+    assert!(parse_err(&text).1.contains("consecutive"));
+}
+
+#[test]
+fn reads_links_junctions_and_other_geometries() {
+    let text = r#"<OpenDRIVE><header/>
+<road id="a" length="30" junction="-1">
+ <link><predecessor elementType="junction" elementId="j"/>
+   <successor elementType="road" elementId="b" contactPoint="end"/></link>
+ <type s="0" type="motorway"><speed max="60" unit="mph"/></type>
+ <planView>
+  <geometry s="0" x="0" y="0" hdg="0" length="10"><spiral curvStart="0" curvEnd="0.01"/></geometry>
+  <geometry s="10" x="10" y="0" hdg="0" length="10"><poly3 a="0" b="0" c="0.001" d="0"/></geometry>
+  <geometry s="20" x="20" y="0" hdg="0" length="10"><paramPoly3 aU="0" bU="10" cU="0" dU="0" aV="0" bV="0" cV="1" dV="0" pRange="arcLength"/></geometry>
+ </planView>
+ <elevationProfile><elevation s="0" a="0" b="0" c="0" d="0"/></elevationProfile>
+ <lanes><laneSection s="0"><center><lane id="0" type="none"/></center>
+  <right><lane id="-1" type="onRamp"><link><predecessor id="-2"/><successor id="-1"/></link>
+   <width sOffset="0" a="3" b="0" c="0" d="0"/><speed sOffset="0" max="no limit"/></lane></right>
+ </laneSection></lanes>
+</road>
+<junction id="j" name="x"><connection id="0" incomingRoad="a" connectingRoad="c" contactPoint="end">
+ <laneLink from="-1" to="1"/></connection></junction>
+</OpenDRIVE>"#;
+    let od = parse_xodr(text, "t").expect("parses");
+    let r = &od.roads[0];
+    assert_eq!(
+        r.successor.as_ref().and_then(|l| l.contact_point),
+        Some(ContactPoint::End)
+    );
+    assert_eq!(
+        r.predecessor.as_ref().map(|l| l.element_type),
+        Some(ElementType::Junction)
+    );
+    assert!((r.types[0].speed.unwrap_or(0.0) - 60.0 * 0.44704).abs() < 1e-12);
+    assert!(matches!(
+        r.geometries[2].kind,
+        GeometryKind::ParamPoly3 {
+            p_range: PRange::ArcLength,
+            ..
+        }
+    ));
+    let lane = &r.lane_sections[0].right[0];
+    assert_eq!(
+        (lane.predecessors.clone(), lane.successors.clone()),
+        (vec![-2], vec![-1])
+    );
+    assert_eq!(lane.speeds[0].max, None);
+    assert_eq!(lane.kind, LaneType::OnRamp);
+    assert_eq!(od.junctions[0].connections[0].lane_links, vec![(-1, 1)]);
+    assert_eq!(parse_xodr(&to_xodr(&od), "again").expect("round trip"), od);
+    let no_contact = text.replace(" contactPoint=\"end\"/></link>", "/></link>");
+    assert!(parse_err(&no_contact).1.contains("contactPoint"));
+}
