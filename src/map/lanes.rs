@@ -28,6 +28,10 @@ pub const DEFAULT_SPEED_LIMIT: f64 = 130.0 / 3.6;
 /// Widths below this (m) count as zero: such a lane has no area.
 const MIN_WIDTH: f64 = 1e-6;
 
+/// Longest road accepted (m): sampling is linear in length, so a corrupt length such as 1e15
+/// must be an error rather than an endless loop.
+pub const MAX_ROAD_LENGTH: f64 = 100_000.0;
+
 /// One lane of one lane section, sampled in its travel direction.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Lane {
@@ -230,11 +234,14 @@ fn validate(od: &OpenDrive, source: &str) -> Result<()> {
         if !seen.insert(road.id.as_str()) {
             return Err(Error::invalid(source, place, "road id is used twice"));
         }
-        if !(road.length > 0.0 && road.length.is_finite()) {
+        if !(road.length > 0.0 && road.length <= MAX_ROAD_LENGTH) {
             return Err(Error::invalid(
                 source,
                 place,
-                format!("length is {}, expected a positive number", road.length),
+                format!(
+                    "length is {}, expected a positive number of at most {MAX_ROAD_LENGTH} m",
+                    road.length
+                ),
             ));
         }
         if road.geometries.is_empty() || road.lane_sections.is_empty() {

@@ -28,7 +28,7 @@ pub use lane_graph::{
     LANE_NODE_FEATURE_NAMES, LANE_NODE_FEATURES, LaneGraph, LaneNode, NeighbourTable,
     mark_category, neighbour_table,
 };
-pub use lanes::{DEFAULT_SPEED_LIMIT, Lane, Map, SAMPLE_SPACING};
+pub use lanes::{DEFAULT_SPEED_LIMIT, Lane, MAX_ROAD_LENGTH, Map, SAMPLE_SPACING};
 pub use opendrive::Lane as OdLane;
 pub use opendrive::{
     Connection, ContactPoint, ElementType, Geometry, GeometryKind, Junction, LaneSection,

@@ -44,7 +44,9 @@ const GL_W: [f64; 4] = [
 
 /// Composite 8-point Gauss-Legendre over [a, b] in `n` equal pieces, for a vector integrand.
 fn integrate2(a: f64, b: f64, n: usize, f: impl Fn(f64) -> [f64; 2]) -> [f64; 2] {
-    let n = n.max(1);
+    // The cap bounds the work on absurd input (kilometre-long tight spirals); real roads
+    // need a few dozen pieces.
+    let n = n.clamp(1, 100_000);
     let h = (b - a) / n as f64;
     let mut sum = [0.0; 2];
     for k in 0..n {

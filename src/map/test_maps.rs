@@ -346,3 +346,37 @@ fn queries_are_fast() {
     // ~30 outline points each; generous bound for unoptimised test builds.
     assert!(per_box < 2e-3, "{per_box} s per box");
 }
+
+#[test]
+fn invalid_maps_are_errors_not_panics() {
+    let lanes = [(-1, "driving", [3.0, 0.0, 0.0, 0.0], "solid")];
+    for length in ["0", "1e15"] {
+        let text = straight_xodr(100.0, &lanes, None).replace(
+            "length=\"100\" junction",
+            &format!("length=\"{length}\" junction"),
+        );
+        let err = Map::from_xodr_str(&text, "bad.xodr").expect_err("rejected");
+        let msg = err.to_string();
+        assert!(msg.starts_with("bad.xodr: road 7: length is"), "{msg}");
+    }
+    let text = straight_xodr(100.0, &lanes, None).replace("<center>", "<center><link/>");
+    assert!(
+        Map::from_xodr_str(&text, "ok").is_ok(),
+        "unknown children are ignored"
+    );
+    let err = Map::from_xodr_file(Path::new("/nonexistent/map.xodr")).expect_err("no file");
+    assert!(err.to_string().contains("/nonexistent/map.xodr"));
+    let mut od = parse_xodr(&straight_xodr(100.0, &lanes, None), "x").expect("parses");
+    od.roads[0].successor = Some(RoadLink {
+        element_type: ElementType::Road,
+        element_id: "nowhere".into(),
+        contact_point: Some(ContactPoint::Start),
+    });
+    let msg = Map::from_opendrive(&od, "links")
+        .expect_err("dangling link")
+        .to_string();
+    assert!(
+        msg.contains("road \"nowhere\", which does not exist"),
+        "{msg}"
+    );
+}
