@@ -133,6 +133,53 @@ mod tests {
         assert!(!a.overlaps(&r)); // 3.5 - 1.414 = 2.086 > 2
     }
 
+    /// SplitMix64: a few random numbers for the cross-check without a dependency.
+    fn uniform(state: &mut u64, lo: f64, hi: f64) -> f64 {
+        *state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = *state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^= z >> 31;
+        lo + (hi - lo) * (z >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    #[test]
+    fn overlap_agrees_with_parry2d_on_random_boxes() {
+        use parry2d::math::{Pose, Vector};
+        use parry2d::query::intersection_test;
+        use parry2d::shape::Cuboid;
+        let mut rng = 7u64;
+        let (mut hits, mut misses) = (0, 0);
+        for _ in 0..20_000 {
+            let mut random_box = || {
+                OrientedBox::new(
+                    [uniform(&mut rng, -8.0, 8.0), uniform(&mut rng, -8.0, 8.0)],
+                    uniform(&mut rng, -PI, PI),
+                    uniform(&mut rng, 1.0, 16.0),
+                    uniform(&mut rng, 0.5, 3.0),
+                )
+            };
+            let (a, b) = (random_box(), random_box());
+            let parry = |o: &OrientedBox| {
+                (
+                    Pose::new(Vector::new(o.center[0], o.center[1]), o.heading),
+                    Cuboid::new(Vector::new(0.5 * o.length, 0.5 * o.width)),
+                )
+            };
+            let ((pa, ca), (pb, cb)) = (parry(&a), parry(&b));
+            let expected = intersection_test(&pa, &ca, &pb, &cb)
+                .expect("cuboid pairs are supported")
+                .intersecting;
+            assert_eq!(a.overlaps(&b), expected, "{a:?} {b:?}");
+            if expected { hits += 1 } else { misses += 1 }
+        }
+        // Both outcomes are exercised.
+        assert!(
+            hits > 2_000 && misses > 2_000,
+            "{hits} hits, {misses} misses"
+        );
+    }
+
     #[test]
     fn outline_points_are_dense_and_on_the_outline() {
         let b = OrientedBox::new([0.0, 0.0], 0.3, 4.0, 2.0);

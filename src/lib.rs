@@ -3,8 +3,12 @@
 //! Data flows one way: `data` and `map` feed `scene`; the simulator, model, training and
 //! evaluation build on scenes. See `README.md` for the tour.
 
+pub mod data;
 pub mod error;
 pub mod geometry;
+pub mod io;
 pub mod map;
+pub mod render;
+pub mod scene;
 
 pub use error::{Error, Result};

@@ -1,0 +1,16 @@
+//! Real driving logs: loaders, tracks, the shipped A9 dataset, and the cutting of recordings
+//! into scenes.
+
+pub mod a9;
+pub mod automatum;
+pub mod logged_infractions;
+pub mod summary;
+pub mod track;
+pub mod windows;
+
+pub use a9::A9Dataset;
+pub use automatum::{A9_DYNAMIC_SHA256, A9_STATIC_SHA256, Recording, load_recording, sha256_file};
+pub use logged_infractions::{LoggedInfractions, logged_infractions};
+pub use summary::{DataSummary, summarize};
+pub use track::{AgentState, Track, TrackSample, VehicleClass};
+pub use windows::{SceneConfig, SceneSplit, build_scenes};

@@ -1,0 +1,58 @@
+//! Atomic file output: results, checkpoints and pictures are written to a temporary file in
+//! the destination's folder and renamed into place, so a crash never leaves a half file.
+
+use std::path::{Path, PathBuf};
+
+use crate::error::{Error, Result};
+
+/// A temporary sibling of `path` that keeps its extension (some writers pick the format from
+/// it).
+fn temp_sibling(path: &Path) -> PathBuf {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    path.with_file_name(format!(".{name}.{}.tmp.{name}", std::process::id()))
+}
+
+/// Calls `write` with a temporary path next to `path`, then renames it onto `path`. On error
+/// the temporary file is removed and `path` is left as it was.
+pub fn atomic_write_with(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    }
+    let tmp = temp_sibling(path);
+    let result =
+        write(&tmp).and_then(|()| std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e)));
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
+}
+
+/// Writes `bytes` to `path` atomically.
+pub fn atomic_write(path: &Path, bytes: &[u8]) -> Result<()> {
+    atomic_write_with(path, |tmp| {
+        std::fs::write(tmp, bytes).map_err(|e| Error::io(tmp, e))
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn failed_write_leaves_the_old_file() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let path = dir.path().join("out.json");
+        atomic_write(&path, b"old").expect("first write");
+        let err = atomic_write_with(&path, |tmp| {
+            std::fs::write(tmp, b"half").map_err(|e| Error::io(tmp, e))?;
+            Err(Error::InvalidArgument("interrupted".into()))
+        });
+        assert!(err.is_err());
+        assert_eq!(std::fs::read(&path).expect("read"), b"old");
+        let leftovers = std::fs::read_dir(dir.path()).expect("list").count();
+        assert_eq!(leftovers, 1, "the temporary file is cleaned up");
+    }
+}
