@@ -1,0 +1,74 @@
+//! The `rtr` binary as a user runs it.
+
+use std::process::Command;
+
+fn rtr(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_rtr"))
+        .args(args)
+        .output()
+        .expect("the rtr binary runs")
+}
+
+#[test]
+fn data_summary_json_has_the_documented_fields() {
+    let out = rtr(&["data", "summary", "--json"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    assert_eq!(v["vehicles"], 453);
+    assert_eq!(v["driving_lanes"], 6);
+    assert!((v["road_length_m"].as_f64().unwrap() - 266.28).abs() < 0.01);
+    assert!((v["duration_s"].as_f64().unwrap() - 541.4).abs() < 0.1);
+    for key in [
+        "lane_graph_nodes",
+        "train_scenes",
+        "test_scenes",
+        "logged_offroad_pct",
+        "logged_collision_pct",
+    ] {
+        assert!(v[key].is_number(), "{key} missing in {v}");
+    }
+    assert!(v["train_scenes"].as_u64().unwrap() > v["test_scenes"].as_u64().unwrap());
+}
+
+#[test]
+fn render_writes_png_and_svg() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let prefix = dir.path().join("scene");
+    let out = rtr(&[
+        "render", "--split", "test", "--index", "3", "--width", "800", "--out",
+    ]
+    .iter()
+    .copied()
+    .chain([prefix.to_str().unwrap()])
+    .collect::<Vec<_>>());
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let png = std::fs::read(prefix.with_extension("png")).expect("png written");
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    let svg = std::fs::read_to_string(prefix.with_extension("svg")).expect("svg written");
+    assert!(svg.contains("<svg") && svg.contains("<polygon"));
+}
+
+#[test]
+fn bad_arguments_fail_with_a_message() {
+    let out = rtr(&["render", "--index", "100000", "--out", "unused.png"]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--index 100000"), "{err}");
+
+    let out = rtr(&["data", "summary", "--data", "no/such/folder"]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("no/such/folder"), "{err}");
+
+    let out = rtr(&["render", "--out", "scene.bmp"]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains(".png or .svg"));
+}
