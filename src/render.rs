@@ -119,17 +119,26 @@ fn rotate(p: [f64; 2], cos: f64, sin: f64) -> [f64; 2] {
 /// Draws `scene` at its current step to `path`: `.png` or `.svg` by extension. The file is
 /// written atomically.
 pub fn render_scene(scene: &Scene, path: &Path, opts: &RenderOptions) -> Result<()> {
-    let view = View::fit(&scene.map, opts)?;
+    render(&scene.map, Some(scene), path, opts)
+}
+
+/// Draws an empty map (road surface and lane marks), e.g. a procedural one.
+pub fn render_map(map: &Map, path: &Path, opts: &RenderOptions) -> Result<()> {
+    render(map, None, path, opts)
+}
+
+fn render(map: &Map, scene: Option<&Scene>, path: &Path, opts: &RenderOptions) -> Result<()> {
+    let view = View::fit(map, opts)?;
     let size = (opts.width_px, view.height_px);
     let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
     match ext {
         "svg" => atomic_write_with(path, |tmp| {
             let backend = SVGBackend::new(tmp, size);
-            draw(backend.into_drawing_area(), scene, &view, opts)
+            draw(backend.into_drawing_area(), map, scene, &view, opts)
         }),
         "png" => atomic_write_with(path, |tmp| {
             let backend = BitMapBackend::new(tmp, size);
-            draw(backend.into_drawing_area(), scene, &view, opts)
+            draw(backend.into_drawing_area(), map, scene, &view, opts)
         }),
         other => Err(Error::InvalidArgument(format!(
             "{}: cannot render to `.{other}`: expected a .png or .svg file name",
@@ -145,7 +154,8 @@ pub fn output_paths(prefix: &Path) -> [PathBuf; 2] {
 
 fn draw<DB: DrawingBackend>(
     area: DrawingArea<DB, plotters::coord::Shift>,
-    scene: &Scene,
+    map: &Map,
+    scene: Option<&Scene>,
     view: &View,
     opts: &RenderOptions,
 ) -> Result<()> {
@@ -153,7 +163,6 @@ fn draw<DB: DrawingBackend>(
         Error::InvalidArgument(format!("drawing failed: {e}"))
     };
     area.fill(&GROUND).map_err(fail)?;
-    let map = &scene.map;
     // Shoulders first, so driving lanes paint over shared edges.
     for pass_shoulder in [true, false] {
         for lane in map.lanes().iter().filter(|l| l.is_drivable()) {
@@ -184,6 +193,18 @@ fn draw<DB: DrawingBackend>(
             }
         }
     }
+    if let Some(scene) = scene {
+        draw_agents(&area, scene, view, opts).map_err(fail)?;
+    }
+    area.present().map_err(fail)
+}
+
+fn draw_agents<DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    scene: &Scene,
+    view: &View,
+    opts: &RenderOptions,
+) -> std::result::Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
     let now = scene.current_step();
     let line_px = ((0.3 * view.scale).round() as u32).max(1);
     for agent in &scene.agents {
@@ -205,26 +226,21 @@ fn draw<DB: DrawingBackend>(
         area.draw(&PathElement::new(
             future,
             color.mix(0.45).stroke_width(line_px),
-        ))
-        .map_err(fail)?;
-        area.draw(&PathElement::new(history, color.stroke_width(line_px)))
-            .map_err(fail)?;
+        ))?;
+        area.draw(&PathElement::new(history, color.stroke_width(line_px)))?;
         for i in (now + 1..scene.steps()).filter(|&i| agent.valid[i]) {
             let p = view.px([agent.states[i].x, agent.states[i].y]);
-            area.draw(&Circle::new(p, line_px, color.mix(0.6).filled()))
-                .map_err(fail)?;
+            area.draw(&Circle::new(p, line_px, color.mix(0.6).filled()))?;
         }
         if let Some(footprint) = agent.footprint(now) {
             let corners: Vec<_> = footprint.corners().iter().map(|&c| view.px(c)).collect();
-            area.draw(&Polygon::new(corners.clone(), color.filled()))
-                .map_err(fail)?;
+            area.draw(&Polygon::new(corners.clone(), color.filled()))?;
             let mut closed = corners;
             closed.push(closed[0]);
-            area.draw(&PathElement::new(closed, BLACK.stroke_width(1)))
-                .map_err(fail)?;
+            area.draw(&PathElement::new(closed, BLACK.stroke_width(1)))?;
         }
     }
-    area.present().map_err(fail)
+    Ok(())
 }
 
 /// The visible pieces of a lane boundary with a given mark: the whole line for solid marks,

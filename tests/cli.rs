@@ -72,3 +72,60 @@ fn bad_arguments_fail_with_a_message() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains(".png or .svg"));
 }
+
+#[test]
+fn procedural_maps_render_and_export_to_opendrive_that_reads_back() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let xodr = dir.path().join("merge.xodr");
+    let out = rtr(&[
+        "map",
+        "export",
+        "--procedural",
+        "on_ramp_merge",
+        "--out",
+        xodr.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = rtr(&["map", "summary", "--xodr", xodr.to_str().unwrap()]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
+    assert!(v["junctions"].as_u64().unwrap() >= 1, "{v}");
+    assert!(v["driving_lanes"].as_u64().unwrap() >= 3, "{v}");
+
+    let png = dir.path().join("fork.png");
+    let out = rtr(&[
+        "map",
+        "render",
+        "--procedural",
+        "off_ramp_fork",
+        "--width",
+        "600",
+        "--out",
+        png.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(std::fs::metadata(&png).expect("png").len() > 1000);
+
+    let out = rtr(&[
+        "map",
+        "summary",
+        "--procedural",
+        "{\"kind\":\"lane_drop\",\"lanes\":0}",
+    ]);
+    assert!(!out.status.success());
+    let out = rtr(&["map", "summary", "--procedural", "roundabout"]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("expected one of"));
+}

@@ -6,7 +6,8 @@ use std::process::ExitCode;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
 use rtr::data::{A9Dataset, SceneConfig, a9, summarize};
-use rtr::render::{RenderOptions, output_paths, render_scene};
+use rtr::map::{LaneGraph, Map, ProceduralMap, to_xodr};
+use rtr::render::{RenderOptions, output_paths, render_map, render_scene};
 use rtr::{Error, Result};
 
 #[derive(Parser)]
@@ -29,6 +30,73 @@ enum Command {
     },
     /// Draw a scene of the nominal dataset (road, lane marks, boxes, history, logged future).
     Render(RenderArgs),
+    /// OpenDRIVE and procedural maps: describe, draw, export.
+    Map {
+        #[command(subcommand)]
+        command: MapCommand,
+    },
+}
+
+#[derive(Subcommand)]
+enum MapCommand {
+    /// Road length, lanes and lane-graph size as JSON.
+    Summary(MapSource),
+    /// Draw the empty map to PNG/SVG.
+    Render {
+        #[command(flatten)]
+        source: MapSource,
+        /// Output file (.png or .svg), or a prefix without extension for both.
+        #[arg(long)]
+        out: PathBuf,
+        #[arg(long, default_value_t = 2400)]
+        width: u32,
+    },
+    /// Write the map as an OpenDRIVE file (procedural maps open in any OpenDRIVE viewer).
+    Export {
+        #[command(flatten)]
+        source: MapSource,
+        #[arg(long)]
+        out: PathBuf,
+    },
+}
+
+#[derive(Args)]
+#[group(required = true, multiple = false)]
+struct MapSource {
+    /// An OpenDRIVE file.
+    #[arg(long)]
+    xodr: Option<PathBuf>,
+    /// A generated map: a preset name (straight, curve, on_ramp_merge, off_ramp_fork,
+    /// lane_drop) or a JSON object such as
+    /// '{"kind":"lane_drop","lanes":3,"lane_width":3.75,"length":500,"drop_s":200,"taper_length":100}'.
+    #[arg(long)]
+    procedural: Option<String>,
+}
+
+impl MapSource {
+    fn load(&self) -> Result<Map> {
+        match (&self.xodr, &self.procedural) {
+            (Some(path), _) => Map::from_xodr_file(path),
+            (None, Some(spec)) => {
+                let od = self.procedural_spec(spec)?.build()?;
+                Map::from_opendrive(&od, &format!("procedural:{spec}"))
+            }
+            (None, None) => Err(Error::InvalidArgument("give --xodr or --procedural".into())),
+        }
+    }
+
+    fn procedural_spec(&self, spec: &str) -> Result<ProceduralMap> {
+        if spec.trim_start().starts_with('{') {
+            serde_json::from_str(spec).map_err(|e| Error::Parse {
+                source_name: "--procedural".into(),
+                line: e.line(),
+                column: e.column(),
+                message: e.to_string(),
+            })
+        } else {
+            ProceduralMap::preset(spec)
+        }
+    }
 }
 
 #[derive(Subcommand)]
@@ -121,6 +189,54 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Command::Render(args) => render(args),
+        Command::Map { command } => map_command(command),
+    }
+}
+
+fn map_command(command: MapCommand) -> Result<()> {
+    match command {
+        MapCommand::Summary(source) => {
+            let map = source.load()?;
+            let graph = LaneGraph::build(&map, a9::LANE_NODE_LENGTH);
+            let summary = serde_json::json!({
+                "source": map.source(),
+                "roads": map.opendrive().roads.len(),
+                "junctions": map.opendrive().junctions.len(),
+                "road_length_m": map.road_length(),
+                "driving_lanes": map.driving_lane_count(),
+                "sampled_lanes": map.lanes().len(),
+                "lane_graph_nodes": graph.nodes.len(),
+                "bounds_m": map.bounds(),
+            });
+            println!("{summary:#}");
+            Ok(())
+        }
+        MapCommand::Render { source, out, width } => {
+            let map = source.load()?;
+            let opts = RenderOptions {
+                width_px: width,
+                ..Default::default()
+            };
+            for path in targets(&out) {
+                render_map(&map, &path, &opts)?;
+                println!("wrote {}", path.display());
+            }
+            Ok(())
+        }
+        MapCommand::Export { source, out } => {
+            let map = source.load()?;
+            rtr::io::atomic_write(&out, to_xodr(map.opendrive()).as_bytes())?;
+            println!("wrote {}", out.display());
+            Ok(())
+        }
+    }
+}
+
+/// The files an `--out` names: itself if it has an extension, else PREFIX.png and PREFIX.svg.
+fn targets(out: &std::path::Path) -> Vec<PathBuf> {
+    match out.extension() {
+        Some(_) => vec![out.to_path_buf()],
+        None => output_paths(out).to_vec(),
     }
 }
 
@@ -151,11 +267,7 @@ fn render(args: RenderArgs) -> Result<()> {
         width_px: args.width,
         ..Default::default()
     };
-    let targets = match args.out.extension() {
-        Some(_) => vec![args.out.clone()],
-        None => output_paths(&args.out).to_vec(),
-    };
-    for path in &targets {
+    for path in &targets(&args.out) {
         render_scene(scene, path, &opts)?;
         println!("wrote {}", path.display());
     }

@@ -36,8 +36,8 @@ pub use opendrive::{
     RoadType,
 };
 pub use procedural::{
-    JUNCTION_LENGTH, Layout, PROCEDURAL_SPEED_LIMIT, ProceduralMap, SHOULDER_WIDTH, curve,
-    lane_drop, off_ramp_fork, on_ramp_merge, straight,
+    JUNCTION_LENGTH, Layout, PRESET_NAMES, PROCEDURAL_SPEED_LIMIT, ProceduralMap, SHOULDER_WIDTH,
+    curve, lane_drop, off_ramp_fork, on_ramp_merge, straight,
 };
 pub use query::{BEYOND_END_RANGE, BOX_OUTLINE_SPACING, BoxOnRoad, LaneProjection, PointLocation};
 pub use reference_line::{RefPoint, eval_road};

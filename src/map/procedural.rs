@@ -204,7 +204,66 @@ fn check_fits(length: f64, parts: &[(&str, f64)]) -> Result<()> {
     Ok(())
 }
 
+/// Names accepted by [`ProceduralMap::preset`].
+pub const PRESET_NAMES: [&str; 5] = [
+    "straight",
+    "curve",
+    "on_ramp_merge",
+    "off_ramp_fork",
+    "lane_drop",
+];
+
 impl ProceduralMap {
+    /// A three-lane motorway example of each kind (3.75 m lanes, German motorway widths), for
+    /// the command line and as a starting point for scenario families.
+    pub fn preset(name: &str) -> Result<ProceduralMap> {
+        let (lanes, lane_width) = (3, 3.75);
+        Ok(match name {
+            "straight" => ProceduralMap::Straight {
+                lanes,
+                lane_width,
+                length: 400.0,
+                layout: Layout::OneWay,
+            },
+            "curve" => ProceduralMap::Curve {
+                lanes,
+                lane_width,
+                length: 500.0,
+                curvature: 1.0 / 800.0,
+                layout: Layout::OneWay,
+            },
+            "on_ramp_merge" => ProceduralMap::OnRampMerge {
+                lanes,
+                lane_width,
+                length: 600.0,
+                merge_s: 150.0,
+                accel_lane_length: 200.0,
+                taper_length: 60.0,
+            },
+            "off_ramp_fork" => ProceduralMap::OffRampFork {
+                lanes,
+                lane_width,
+                length: 600.0,
+                diverge_s: 300.0,
+                decel_lane_length: 150.0,
+                taper_length: 60.0,
+            },
+            "lane_drop" => ProceduralMap::LaneDrop {
+                lanes,
+                lane_width,
+                length: 500.0,
+                drop_s: 200.0,
+                taper_length: 100.0,
+            },
+            other => {
+                return Err(Error::InvalidArgument(format!(
+                    "unknown procedural map `{other}`: expected one of {}",
+                    PRESET_NAMES.join(", ")
+                )));
+            }
+        })
+    }
+
     /// Validates the parameters and generates the map.
     pub fn build(&self) -> Result<OpenDrive> {
         match *self {

@@ -332,3 +332,21 @@ fn nonsense_parameters_are_rejected() {
         );
     }
 }
+
+#[test]
+fn every_preset_builds_a_drivable_connected_map() {
+    for name in PRESET_NAMES {
+        let od = ProceduralMap::preset(name)
+            .and_then(|p| p.build())
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        let map = map_of(&od);
+        assert!(map.driving_lane_count() >= 3, "{name}");
+        let graph = LaneGraph::build(&map, 10.0);
+        let linked = graph.successors.iter().filter(|s| !s.is_empty()).count();
+        assert!(
+            linked + 8 >= graph.nodes.len(),
+            "{name}: most nodes have a successor"
+        );
+    }
+    assert!(ProceduralMap::preset("roundabout").is_err());
+}
