@@ -170,12 +170,7 @@ fn draw<DB: DrawingBackend>(
                 continue;
             }
             let color = if pass_shoulder { SHOULDER } else { ASPHALT };
-            let outline: Vec<_> = lane
-                .left_boundary
-                .iter()
-                .chain(lane.right_boundary.iter().rev())
-                .map(|&p| view.px(p))
-                .collect();
+            let outline: Vec<_> = lane.polygon().into_iter().map(|p| view.px(p)).collect();
             area.draw(&Polygon::new(outline, color.filled()))
                 .map_err(fail)?;
         }

@@ -107,6 +107,15 @@ impl Lane {
     pub fn along_reference(&self) -> bool {
         self.id < 0
     }
+
+    /// The lane's outline as a closed polygon: left boundary forward, right boundary back.
+    pub fn polygon(&self) -> Vec<[f64; 2]> {
+        self.left_boundary
+            .iter()
+            .chain(self.right_boundary.iter().rev())
+            .copied()
+            .collect()
+    }
 }
 
 /// The sampled reference line of one road.
@@ -210,6 +219,16 @@ impl Map {
             .map(|l| (l.road, l.id))
             .collect::<HashSet<_>>()
             .len()
+    }
+
+    /// The drivable road polygon (driving, shoulder and ramp lanes) as the union of one
+    /// polygon per lane; `box_on_road` answers containment in it.
+    pub fn road_polygons(&self) -> Vec<Vec<[f64; 2]>> {
+        self.lanes
+            .iter()
+            .filter(|l| l.is_drivable())
+            .map(Lane::polygon)
+            .collect()
     }
 
     /// Axis-aligned bounds (min, max) of all lane boundaries.

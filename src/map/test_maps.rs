@@ -380,3 +380,55 @@ fn invalid_maps_are_errors_not_panics() {
         "{msg}"
     );
 }
+
+#[test]
+fn a9_road_polygon_has_the_drivable_area_and_agrees_with_point_queries() {
+    let map = a9();
+    let polygons = map.road_polygons();
+    // 8 drivable lanes: 3 driving + 1 shoulder per carriageway.
+    assert_eq!(polygons.len(), 8);
+    let area: f64 = polygons
+        .iter()
+        .map(|p| {
+            let n = p.len();
+            0.5 * (0..n)
+                .map(|i| p[i][0] * p[(i + 1) % n][1] - p[(i + 1) % n][0] * p[i][1])
+                .sum::<f64>()
+                .abs()
+        })
+        .sum();
+    // Drivable widths 14.3 m (right) + 14.5 m (left) over 266.28 m; the arc's curvature
+    // changes it by far less than the tolerance.
+    let expected = (14.3 + 14.5) * 266.281170003393;
+    assert!(
+        (area - expected).abs() < 0.5,
+        "area {area}, expected {expected}"
+    );
+
+    // Points strictly inside a lane polygon are on the road.
+    let inside = |poly: &[[f64; 2]], q: [f64; 2]| {
+        let mut c = false;
+        let n = poly.len();
+        for i in 0..n {
+            let (a, b) = (poly[i], poly[(i + 1) % n]);
+            if (a[1] > q[1]) != (b[1] > q[1])
+                && q[0] < a[0] + (q[1] - a[1]) / (b[1] - a[1]) * (b[0] - a[0])
+            {
+                c = !c;
+            }
+        }
+        c
+    };
+    let road = &map.opendrive().roads[0];
+    let mut agreed = 0;
+    for i in 0..400 {
+        let s = 5.0 + (i % 40) as f64 * 6.4;
+        let t = -19.0 + (i / 40) as f64 * 3.9 + 0.37;
+        let q = eval_road(road, s).offset(t);
+        let in_polygon = polygons.iter().any(|p| inside(p, q));
+        let on_road = map.point_location(q) == PointLocation::OnRoad;
+        assert_eq!(in_polygon, on_road, "s {s}, t {t}");
+        agreed += usize::from(on_road);
+    }
+    assert!(agreed > 100 && agreed < 400, "{agreed} points on the road");
+}
