@@ -12,6 +12,7 @@ mod procedural;
 mod procedural_parts;
 mod procedural_ramps;
 mod query;
+mod raster;
 mod reference_line;
 mod topology;
 mod xodr_parse;
@@ -40,6 +41,7 @@ pub use procedural::{
     curve, lane_drop, off_ramp_fork, on_ramp_merge, straight,
 };
 pub use query::{BEYOND_END_RANGE, BOX_OUTLINE_SPACING, BoxOnRoad, LaneProjection, PointLocation};
+pub use raster::{RASTER_CELL, RoadRaster};
 pub use reference_line::{RefPoint, eval_road};
 pub use xodr_parse::parse_xodr;
 pub use xodr_write::to_xodr;
