@@ -3,6 +3,7 @@
 //! Data flows one way: `data` and `map` feed `scene`; the simulator, model, training and
 //! evaluation build on scenes. See `README.md` for the tour.
 
+pub mod backend;
 pub mod data;
 pub mod error;
 pub mod geometry;
@@ -10,5 +11,6 @@ pub mod io;
 pub mod map;
 pub mod render;
 pub mod scene;
+pub mod sim;
 
 pub use error::{Error, Result};

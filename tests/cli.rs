@@ -129,3 +129,26 @@ fn procedural_maps_render_and_export_to_opendrive_that_reads_back() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("expected one of"));
 }
+
+#[test]
+fn bench_sim_prints_its_figures_and_names_missing_backends() {
+    let out = rtr(&["bench", "sim", "--json", "--repetitions", "1"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    assert!(v["agent_steps_per_s"].as_f64().unwrap() > 0.0, "{v}");
+    assert!(v["rollout_grad_ms"].as_f64().unwrap() > 0.0, "{v}");
+    assert_eq!(v["step_batch"], serde_json::json!([64, 50]));
+
+    let out = rtr(&["bench", "sim", "--backend", "vulkan9"]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("expected ndarray, flex or wgpu"));
+    if !cfg!(feature = "wgpu") {
+        let out = rtr(&["bench", "sim", "--backend", "wgpu"]);
+        assert!(!out.status.success());
+        assert!(String::from_utf8_lossy(&out.stderr).contains("--features wgpu"));
+    }
+}

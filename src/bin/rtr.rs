@@ -5,6 +5,7 @@ use std::process::ExitCode;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
+use rtr::backend::Backend;
 use rtr::data::{A9Dataset, SceneConfig, a9, summarize};
 use rtr::map::{LaneGraph, Map, ProceduralMap, to_xodr};
 use rtr::render::{RenderOptions, output_paths, render_map, render_scene};
@@ -30,10 +31,35 @@ enum Command {
     },
     /// Draw a scene of the nominal dataset (road, lane marks, boxes, history, logged future).
     Render(RenderArgs),
+    /// Throughput benchmarks, printed as JSON.
+    Bench {
+        #[command(subcommand)]
+        command: BenchCommand,
+    },
     /// OpenDRIVE and procedural maps: describe, draw, export.
     Map {
         #[command(subcommand)]
         command: MapCommand,
+    },
+}
+
+#[derive(Subcommand)]
+enum BenchCommand {
+    /// Closed-loop simulator: non-neural agent-steps/s (B=64 x N=50) and rollout gradient time
+    /// (T=10, B=32 x N=20) on the A9 map.
+    Sim {
+        #[command(flatten)]
+        data: DataArgs,
+        /// ndarray, flex or wgpu (the latter two need their cargo features).
+        #[arg(long, default_value = "ndarray")]
+        backend: Backend,
+        /// Timed repetitions per measurement (the median is reported).
+        #[arg(long, default_value_t = 5)]
+        repetitions: usize,
+        /// Print one JSON object (the default output is JSON too; the flag is accepted for
+        /// symmetry with other commands).
+        #[arg(long)]
+        json: bool,
     },
 }
 
@@ -190,6 +216,28 @@ fn run(cli: Cli) -> Result<()> {
         }
         Command::Render(args) => render(args),
         Command::Map { command } => map_command(command),
+        Command::Bench {
+            command:
+                BenchCommand::Sim {
+                    data,
+                    backend,
+                    repetitions,
+                    json: _,
+                },
+        } => {
+            if repetitions == 0 {
+                return Err(Error::InvalidArgument(
+                    "--repetitions must be at least 1".into(),
+                ));
+            }
+            let dir = data.data.clone().unwrap_or_else(a9::default_dir);
+            let map = Map::from_xodr_file(&dir.join(a9::STATIC_FILE))?;
+            let report = rtr::sim::bench::run(std::sync::Arc::new(map), backend, repetitions)?;
+            let text = serde_json::to_string(&report)
+                .map_err(|e| Error::InvalidArgument(format!("cannot encode report: {e}")))?;
+            println!("{text}");
+            Ok(())
+        }
     }
 }
 

@@ -1,0 +1,22 @@
+//! The differentiable closed-loop simulator: bicycle dynamics with composable physics terms,
+//! smooth action limits, inverse dynamics, infraction checks, the rollout and the Huber
+//! imitation loss.
+
+pub mod bench;
+pub mod dynamics;
+pub mod infractions;
+pub mod inverse;
+pub mod limits;
+pub mod loss;
+pub mod rollout;
+pub mod state;
+
+pub use dynamics::{Derivative, Drag, Dynamics, DynamicsTerm, TermInput};
+pub use infractions::{MapCache, MapCaches, StepBoxes, StepInfractions, check_step};
+pub use inverse::{InverseActions, KinematicState, inverse_actions};
+pub use limits::{ActionLimits, soft_clamp, soft_clamp_inverse};
+pub use loss::{ImitationLoss, huber, imitation_loss};
+pub use rollout::{
+    Frame, Observation, Policy, Rollout, RolloutConfig, Scripted, rollout, rollout_from,
+};
+pub use state::{Controls, VehicleState, WHEELBASE_RATIO, wheelbase_of};

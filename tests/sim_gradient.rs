@@ -1,0 +1,131 @@
+//! Imitation gradients through the closed-loop rollout against central finite differences,
+//! in f64. Its own test binary: the float dtype of the CPU device is configured once per
+//! process, before any tensor exists.
+
+mod common;
+
+use burn::prelude::*;
+use burn::tensor::{FloatDType, TensorData};
+use rtr::scene::{Scene, SceneBatch};
+use rtr::sim::{
+    Controls, Dynamics, MapCaches, Observation, RolloutConfig, imitation_loss, rollout,
+};
+
+/// A small MLP policy whose weights are explicit tensors, so finite differences can perturb
+/// them: features (speed / 30, heading error to the initial heading) -> 8 tanh units ->
+/// (accel, steer).
+struct TinyMlp {
+    w1: Tensor<2>,
+    w2: Tensor<2>,
+    heading0: Tensor<2>,
+}
+
+impl TinyMlp {
+    fn act(&self, obs: &Observation) -> Controls {
+        let [b, n] = obs.state.speed.dims();
+        let speed = obs.state.speed.clone().div_scalar(30.0);
+        let dh = obs.state.heading.clone() - self.heading0.clone();
+        let ones = Tensor::ones([b, n], &obs.state.speed.device());
+        let x = Tensor::<2>::stack::<3>(vec![speed, dh.clone().sin(), ones], 2).reshape([b * n, 3]);
+        let hidden = x.matmul(self.w1.clone()).tanh();
+        let out = hidden.matmul(self.w2.clone()).reshape([b, n, 2]);
+        Controls::from_stacked(out)
+    }
+}
+
+fn loss_for(
+    scenes: &[&Scene],
+    batch: &SceneBatch,
+    w1: Tensor<2>,
+    w2: Tensor<2>,
+    caches: &mut MapCaches,
+) -> Tensor<1> {
+    let heading0 = batch
+        .agent_states
+        .clone()
+        .narrow(2, batch.history_steps, 1)
+        .narrow(3, 2, 1)
+        .reshape([batch.batch_size(), batch.max_agents()]);
+    let policy = TinyMlp { w1, w2, heading0 };
+    let mut act = |obs: &Observation| policy.act(obs);
+    let config = RolloutConfig {
+        steps: Some(10),
+        // Discrete terminations would make the loss non-smooth under perturbation.
+        early_termination: false,
+    };
+    let out = rollout(
+        scenes,
+        batch,
+        &Dynamics::bicycle(0.5),
+        &mut act,
+        caches,
+        &config,
+    )
+    .expect("rollout");
+    imitation_loss(&out, batch, 1.0).mean()
+}
+
+#[test]
+fn rollout_gradient_matches_finite_differences_in_f64() {
+    let split = common::a9_scenes();
+    // Scenes with several agents that stay on the road for the 10 steps.
+    let scenes: Vec<&Scene> = split.test.iter().step_by(20).take(3).collect();
+    #[allow(deprecated)]
+    let mut device = Device::ndarray().autodiff();
+    device.configure(FloatDType::F64).expect("f64 on the CPU");
+    let batch = SceneBatch::from_scenes(&scenes, &device).expect("batch");
+    let mut caches = MapCaches::default();
+    let w1_init: Vec<f64> = (0..24).map(|i| 0.3 * ((i as f64) * 1.7).sin()).collect();
+    let w2_init: Vec<f64> = (0..16).map(|i| 0.2 * ((i as f64) * 0.9).cos()).collect();
+    let tensor = |v: &[f64], shape: [usize; 2]| {
+        Tensor::<2>::from_data(TensorData::new(v.to_vec(), shape), &device)
+    };
+    let w1 = tensor(&w1_init, [3, 8]).require_grad();
+    let w2 = tensor(&w2_init, [8, 2]).require_grad();
+    let loss = loss_for(&scenes, &batch, w1.clone(), w2.clone(), &mut caches);
+    let grads = loss.backward();
+    let g1 = w1.grad(&grads).expect("w1 has a gradient");
+    let g2 = w2.grad(&grads).expect("w2 has a gradient");
+    let analytic: Vec<f64> = [g1, g2]
+        .into_iter()
+        .flat_map(|g| {
+            g.into_data()
+                .convert::<f64>()
+                .try_into_vec::<f64>()
+                .expect("f64")
+        })
+        .collect();
+
+    let eps = 1e-6;
+    let mut worst: f64 = 0.0;
+    for k in 0..40 {
+        let mut eval = |delta: f64| {
+            let (mut a, mut b) = (w1_init.clone(), w2_init.clone());
+            if k < 24 {
+                a[k] += delta
+            } else {
+                b[k - 24] += delta
+            }
+            let l = loss_for(
+                &scenes,
+                &batch,
+                tensor(&a, [3, 8]),
+                tensor(&b, [8, 2]),
+                &mut caches,
+            );
+            l.into_data()
+                .convert::<f64>()
+                .try_into_vec::<f64>()
+                .expect("f64")[0]
+        };
+        let numeric = (eval(eps) - eval(-eps)) / (2.0 * eps);
+        let rel = (analytic[k] - numeric).abs() / numeric.abs().max(analytic[k].abs()).max(1e-3);
+        worst = worst.max(rel);
+    }
+    assert!(
+        analytic.iter().any(|g| g.abs() > 1e-3),
+        "gradients are not trivially zero"
+    );
+    println!("rollout gradient vs central differences: worst relative error {worst:e}");
+    assert!(worst < 1e-5, "worst relative error {worst:e}");
+}
