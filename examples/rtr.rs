@@ -2,9 +2,10 @@
 //!
 //! Today it runs what rtr has: it loads the real A9 recording and its OpenDRIVE map, builds
 //! the lane graph and the train/test scenes, batches them into tensors, replays the logged
-//! drivers and measures their infractions with the simulator's geometry, and draws a scene.
-//! The closed-loop simulator, the policy, training (BC, IL, RL, RTR) and the paper's
-//! evaluation table are not built yet (open issues); this demo says so instead of pretending.
+//! drivers in closed loop through the differentiable simulator (inverse-model controls) and
+//! measures their infractions, and draws a scene. The policy, training (BC, IL, RL, RTR) and
+//! the paper's evaluation table are not built yet (open issues); this demo says so instead of
+//! pretending.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -13,9 +14,9 @@ use burn::prelude::*;
 use clap::Parser;
 
 use rtr::data::{A9Dataset, SceneConfig, a9, logged_infractions};
-use rtr::map::BoxOnRoad;
 use rtr::render::{RenderOptions, render_scene};
 use rtr::scene::SceneBatch;
+use rtr::sim::{Dynamics, replay_logs};
 
 #[derive(Parser)]
 #[command(about = "rtr end-to-end demo on the shipped A9 recording")]
@@ -76,30 +77,20 @@ fn run(args: Args) -> rtr::Result<()> {
         batch.lane_successors.index.dims()
     );
 
-    // Log replay: every scene's logged future, checked with the simulator's geometry.
-    let (mut agent_steps, mut offroad, mut exiting, mut overlaps) =
-        (0usize, 0usize, 0usize, 0usize);
-    for scene in split.test.iter() {
-        for step in scene.current_step()..scene.steps() {
-            let boxes: Vec<_> = scene
-                .agents
-                .iter()
-                .filter_map(|a| a.footprint(step))
-                .collect();
-            for (i, b) in boxes.iter().enumerate() {
-                agent_steps += 1;
-                match dataset.map.box_on_road(b) {
-                    BoxOnRoad::OnRoad => {}
-                    BoxOnRoad::Exiting => exiting += 1,
-                    BoxOnRoad::OffRoad => offroad += 1,
-                }
-                overlaps += boxes[i + 1..].iter().filter(|o| b.overlaps(o)).count();
-            }
-        }
-    }
+    // Closed-loop log replay: the inverse model's controls drive every controlled agent of the
+    // test scenes through the differentiable simulator.
+    let dynamics = Dynamics::bicycle(config.dt);
+    let test: Vec<_> = split.test.iter().collect();
+    let (replay, _) = replay_logs(&test, &dynamics, &device)?;
     println!(
-        "log replay of the test scenes: {agent_steps} agent-steps, {offroad} off-road, \
-         {exiting} exiting through a road end, {overlaps} overlapping pairs"
+        "closed-loop log replay of {} test scenes: {} agent-steps, position error mean {:.3} m, \
+         max {:.3} m; {} collisions, {} off-road",
+        replay.scenes,
+        replay.agent_steps,
+        replay.mean_position_error_m,
+        replay.max_position_error_m,
+        replay.collisions,
+        replay.offroad
     );
     let all = logged_infractions(rec, &dataset.map);
     println!(
@@ -124,7 +115,7 @@ fn run(args: Args) -> rtr::Result<()> {
     }
 
     println!(
-        "\nnot yet built (open issues): closed-loop simulator (#3), policy and value networks (#4), \
+        "\nnot yet built (open issues): policy and value networks (#4), \
          long-tail scenarios (#5), BC/IL/RL/RTR training (#6), evaluation table (#7), sim-to-real (#8).\n\
          done in {:.1} s",
         clock.elapsed().as_secs_f64()

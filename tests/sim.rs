@@ -11,8 +11,7 @@ use rtr::data::{AgentState, VehicleClass};
 use rtr::map::{BoxOnRoad, LaneGraph, Map, ProceduralMap};
 use rtr::scene::{AgentRole, Scene, SceneAgent, SceneBatch};
 use rtr::sim::{
-    ActionLimits, Controls, Dynamics, MapCaches, Observation, RolloutConfig, VehicleState,
-    inverse_actions, rollout, rollout_from,
+    Controls, Dynamics, MapCaches, Observation, RolloutConfig, Scripted, replay_logs, rollout,
 };
 
 #[allow(deprecated)]
@@ -35,122 +34,51 @@ fn flags(t: &Tensor<3, burn::tensor::Bool>) -> Vec<bool> {
 fn inverse_model_replays_the_real_logs() {
     let split = common::a9_scenes();
     let scenes: Vec<&Scene> = split.test.iter().collect();
-    let device = cpu();
-    let batch = SceneBatch::from_scenes(&scenes, &device).expect("batch");
-    let [b, n, t_total, _] = batch.agent_states.dims();
-    let h = batch.history_steps;
-    let limits = ActionLimits::default();
-    // Kinematic initial states and raw commands per agent, from the inverse model.
-    let mut init = vec![[0f32; 4]; b * n];
-    let mut commands = vec![0f32; b * n * t_total * 2];
-    let mut initial_given = vec![false; b * n];
-    for (bi, scene) in scenes.iter().enumerate() {
-        for (ai, agent) in scene.agents.iter().enumerate() {
-            if agent.role != AgentRole::Controlled {
-                continue;
-            }
-            let inv = inverse_actions(agent, scene.dt, &limits);
-            let slot = bi * n + ai;
-            if let Some(k) = inv.states[h] {
-                init[slot] = [k.x as f32, k.y as f32, k.heading as f32, k.speed as f32];
-                initial_given[slot] = true;
-            } else {
-                // No logged next step to be consistent with: start from the log itself.
-                let s = agent.states[h];
-                let half = 0.5 * rtr::sim::wheelbase_of(agent.length);
-                init[slot] = [
-                    (s.x - half * s.heading.cos()) as f32,
-                    (s.y - half * s.heading.sin()) as f32,
-                    s.heading as f32,
-                    s.speed as f32,
-                ];
-            }
-            for t in 0..t_total {
-                commands[(slot * t_total + t) * 2] = inv.raw_accel[t] as f32;
-                commands[(slot * t_total + t) * 2 + 1] = inv.raw_steer[t] as f32;
-            }
-        }
-    }
-    let commands = Tensor::<4>::from_data(TensorData::new(commands, [b, n, t_total, 2]), &device);
-    let channel = |c: usize| {
-        let v: Vec<f32> = init.iter().map(|s| s[c]).collect();
-        Tensor::<2>::from_data(TensorData::new(v, [b, n]), &device)
+    let (report, out) = replay_logs(&scenes, &Dynamics::bicycle(0.5), &cpu()).expect("replay");
+    println!("log replay: {report:?}");
+    assert!(report.agent_steps > 2000, "{report:?}");
+    assert!(
+        report.mean_position_error_m < 0.05 && report.max_position_error_m < 0.5,
+        "{report:?}"
+    );
+    // Replayed human driving has no infractions.
+    assert_eq!((report.collisions, report.offroad), (0, 0), "{report:?}");
+    // Every compared agent-step was still simulated (nothing terminated or exited early).
+    let simulated = flags(&out.simulated);
+    assert!(simulated.iter().filter(|&&s| s).count() >= report.agent_steps);
+}
+
+#[test]
+fn scripted_agents_take_the_script_and_others_the_policy() {
+    let y = -1.875;
+    let scene = straight_scene(&[(100.0, y, 0.0, 20.0), (200.0, y, 0.0, 20.0)], 4);
+    let batch = SceneBatch::from_scenes(&[&scene], &cpu()).expect("batch");
+    let mask = Tensor::<2>::from_data(TensorData::new(vec![1.0f32, 0.0], [1, 2]), &cpu())
+        .greater_elem(0.5);
+    let mut script = |obs: &Observation| Controls {
+        accel: Tensor::ones(obs.state.speed.dims(), &obs.state.speed.device()).mul_scalar(2.0),
+        steer: Tensor::zeros(obs.state.speed.dims(), &obs.state.speed.device()),
     };
-    let initial = VehicleState {
-        x: channel(0),
-        y: channel(1),
-        heading: channel(2),
-        speed: channel(3),
-        aux: Vec::new(),
+    let mut policy = zero_policy;
+    let mut mixed = Scripted {
+        policy: &mut policy,
+        script: &mut script,
+        mask,
     };
-    let mut replay = |obs: &Observation| {
-        let step = commands
-            .clone()
-            .narrow(2, h + obs.step, 1)
-            .reshape([b, n, 2]);
-        Controls::from_stacked(step)
-    };
-    let out = rollout_from(
-        &scenes,
+    let out = rollout(
+        &[&scene],
         &batch,
         &Dynamics::bicycle(0.5),
-        &mut replay,
+        &mut mixed,
         &mut MapCaches::default(),
         &RolloutConfig::default(),
-        Some(initial),
     )
     .expect("rollout");
-    // Position error where the log has the agent and the inverse model had a full step.
-    let poses = out
-        .poses
-        .clone()
-        .into_data()
-        .convert::<f64>()
-        .try_into_vec::<f64>()
-        .unwrap();
-    let simulated = flags(&out.simulated);
-    let (mut sum, mut count, mut worst) = (0.0, 0usize, 0f64);
-    for (bi, scene) in scenes.iter().enumerate() {
-        for (ai, agent) in scene.agents.iter().enumerate() {
-            let slot = bi * n + ai;
-            if agent.role != AgentRole::Controlled || !initial_given[slot] {
-                continue;
-            }
-            for k in 1..=out.steps {
-                let t = h + k;
-                // The inverse model needs the log at t + 1 to define the state at t.
-                if t + 1 >= t_total
-                    || !(agent.valid[t] && agent.valid[t + 1])
-                    || !agent.valid[t - 1]
-                {
-                    break;
-                }
-                assert!(
-                    simulated[slot * (out.steps + 1) + k],
-                    "{} agent {ai} step {k}",
-                    scene.id
-                );
-                let o = (slot * (out.steps + 1) + k) * 4;
-                let e = (poses[o] - agent.states[t].x).hypot(poses[o + 1] - agent.states[t].y);
-                sum += e;
-                count += 1;
-                worst = worst.max(e);
-            }
-        }
-    }
-    let mean = sum / count as f64;
-    println!(
-        "log replay: {count} agent-steps, mean position error {mean:.4} m, worst {worst:.4} m"
-    );
-    assert!(count > 2000, "{count}");
-    assert!(mean < 0.05 && worst < 0.5, "mean {mean} m, worst {worst} m");
-    // Replayed human driving has no infractions.
-    let collision = flags(&out.collision);
-    assert!(!collision.iter().any(|&c| c), "a replayed log collided");
-    assert!(
-        !flags(&out.offroad).iter().any(|&c| c),
-        "a replayed log went off-road"
-    );
+    let poses = values(out.poses.reshape([1, 2, 20]));
+    let speed = |agent: usize, k: usize| poses[agent * 20 + k * 4 + 3];
+    let limited = 4.0 * (2.0f64 / 4.0).tanh();
+    assert!((speed(0, 4) - (20.0 + 4.0 * 0.5 * limited)).abs() < 1e-3);
+    assert!((speed(1, 4) - 20.0).abs() < 1e-4);
 }
 
 /// A one-way straight road (2 lanes of 3.75 m, 400 m) and a scene of hand-placed agents with

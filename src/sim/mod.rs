@@ -8,6 +8,7 @@ pub mod infractions;
 pub mod inverse;
 pub mod limits;
 pub mod loss;
+pub mod replay;
 pub mod rollout;
 pub mod state;
 
@@ -16,6 +17,7 @@ pub use infractions::{MapCache, MapCaches, StepBoxes, StepInfractions, check_ste
 pub use inverse::{InverseActions, KinematicState, inverse_actions};
 pub use limits::{ActionLimits, soft_clamp, soft_clamp_inverse};
 pub use loss::{ImitationLoss, huber, imitation_loss};
+pub use replay::{ReplayReport, replay_logs};
 pub use rollout::{
     Frame, Observation, Policy, Rollout, RolloutConfig, Scripted, rollout, rollout_from,
 };
