@@ -60,18 +60,23 @@ impl OrientedBox {
     /// a region made of strips wider than `spacing` exactly when these points do, up to
     /// `spacing` of slack; this is how the map tests "fully on the road".
     pub fn outline_points(&self, spacing: f64) -> Vec<[f64; 2]> {
+        self.outline(spacing).collect()
+    }
+
+    /// The points of [`Self::outline_points`], without allocating (hot path of the
+    /// simulator's off-road test).
+    pub fn outline(&self, spacing: f64) -> impl Iterator<Item = [f64; 2]> + use<> {
         let c = self.corners();
-        let mut out = Vec::new();
-        for i in 0..4 {
+        let spacing = spacing.max(1e-3);
+        (0..4).flat_map(move |i| {
             let (a, b) = (c[i], c[(i + 1) % 4]);
             let len = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt();
-            let n = (len / spacing.max(1e-3)).ceil().max(1.0) as usize;
-            for k in 0..n {
+            let n = (len / spacing).ceil().max(1.0) as usize;
+            (0..n).map(move |k| {
                 let t = k as f64 / n as f64;
-                out.push([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]);
-            }
-        }
-        out
+                [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]
+            })
+        })
     }
 
     /// Separating-axis test on the four face normals. Touching boxes (zero-area contact)

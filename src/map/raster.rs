@@ -28,6 +28,10 @@ pub struct RoadRaster {
     ny: usize,
     /// Per cell: ON, BEYOND or OFF when its corners agree, else MIXED.
     cells: Vec<u8>,
+    /// Per cell: Chebyshev distance (in cells) to the nearest cell that is not ON; a box
+    /// whose bounding circle fits inside that clearance is on the road without testing its
+    /// outline.
+    clearance: Vec<u16>,
 }
 
 fn code(l: PointLocation) -> u8 {
@@ -65,12 +69,14 @@ impl RoadRaster {
                 }
             }
         }
+        let clearance = chebyshev_clearance(&cells, nx, ny);
         Self {
             origin,
             cell,
             nx,
             ny,
             cells,
+            clearance,
         }
     }
 
@@ -91,8 +97,18 @@ impl RoadRaster {
 
     /// Same answer as `map.box_on_road(b)`, fast.
     pub fn box_on_road(&self, map: &Map, b: &OrientedBox) -> BoxOnRoad {
+        // Quick accept: every cell within (k - 1) cells (Chebyshev) of the centre's cell is ON,
+        // so a disc of radius (k - 1) * cell around the centre lies on the road.
+        let fx = (b.center[0] - self.origin[0]) / self.cell;
+        let fy = (b.center[1] - self.origin[1]) / self.cell;
+        if fx >= 0.0 && fy >= 0.0 && (fx as usize) < self.nx && (fy as usize) < self.ny {
+            let k = self.clearance[fy as usize * self.nx + fx as usize] as f64;
+            if (k - 1.0) * self.cell >= b.bounding_radius() {
+                return BoxOnRoad::OnRoad;
+            }
+        }
         let mut exiting = false;
-        for p in b.outline_points(BOX_OUTLINE_SPACING) {
+        for p in b.outline(BOX_OUTLINE_SPACING) {
             match self.point_location(map, p) {
                 PointLocation::OnRoad => {}
                 PointLocation::BeyondRoadEnd => exiting = true,
@@ -105,6 +121,46 @@ impl RoadRaster {
             BoxOnRoad::OnRoad
         }
     }
+}
+
+/// Multi-source breadth-first search from every cell that is not ON (and from outside the
+/// grid) over 8-neighbours, which yields the Chebyshev distance.
+fn chebyshev_clearance(cells: &[u8], nx: usize, ny: usize) -> Vec<u16> {
+    let mut dist = vec![u16::MAX; nx * ny];
+    let mut queue = std::collections::VecDeque::new();
+    for j in 0..ny {
+        for i in 0..nx {
+            let border = i == 0 || j == 0 || i + 1 == nx || j + 1 == ny;
+            if cells[j * nx + i] != ON || border {
+                dist[j * nx + i] = 0;
+                queue.push_back((i, j));
+            }
+        }
+    }
+    while let Some((i, j)) = queue.pop_front() {
+        let d = dist[j * nx + i].saturating_add(1);
+        for (di, dj) in [
+            (-1i64, -1i64),
+            (0, -1),
+            (1, -1),
+            (-1, 0),
+            (1, 0),
+            (-1, 1),
+            (0, 1),
+            (1, 1),
+        ] {
+            let (a, b) = (i as i64 + di, j as i64 + dj);
+            if a < 0 || b < 0 || a >= nx as i64 || b >= ny as i64 {
+                continue;
+            }
+            let at = b as usize * nx + a as usize;
+            if dist[at] > d {
+                dist[at] = d;
+                queue.push_back((a as usize, b as usize));
+            }
+        }
+    }
+    dist
 }
 
 #[cfg(test)]
@@ -132,5 +188,28 @@ mod tests {
             y += 0.53;
         }
         assert!(on > 10_000 && on < n, "{on} of {n} points on the road");
+    }
+
+    #[test]
+    fn raster_box_test_agrees_with_the_exact_one() {
+        let map = a9();
+        let raster = RoadRaster::new(&map, RASTER_CELL);
+        let (min, max) = map.bounds();
+        let (mut n, mut on) = (0, 0);
+        for i in 0..3000 {
+            let f = i as f64;
+            let center = [
+                min[0] + (max[0] - min[0]) * ((f * 0.618_034) % 1.0),
+                min[1] - 5.0 + (max[1] - min[1] + 10.0) * ((f * 0.414_214) % 1.0),
+            ];
+            let heading = 1.6 + 0.2 * (f * 0.7).sin();
+            let length = if i % 3 == 0 { 16.0 } else { 4.5 };
+            let b = OrientedBox::new(center, heading, length, 2.0);
+            let exact = map.box_on_road(&b);
+            assert_eq!(raster.box_on_road(&map, &b), exact, "{b:?}");
+            n += 1;
+            on += usize::from(exact == BoxOnRoad::OnRoad);
+        }
+        assert!(on > 300 && on < n - 300, "{on} of {n} boxes on the road");
     }
 }

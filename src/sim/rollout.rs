@@ -184,6 +184,11 @@ pub fn rollout_from(
     let wheelbase = length.clone().mul_scalar(WHEELBASE_RATIO).clamp_min(1.0);
     let (length_v, width_v) = (to_f32(&length), to_f32(&width));
     let controlled = to_bool(&batch.agent_controlled);
+    let log_valid: Vec<bool> = batch
+        .agent_valid
+        .to_data()
+        .try_into_vec::<bool>()
+        .unwrap_or_default();
 
     let logged_state = |t: usize| {
         let s = at(t);
@@ -246,22 +251,39 @@ pub fn rollout_from(
         let stepped = dynamics.step(&state, &command, &wheelbase);
         // Replayed agents (and anything not alive) follow the log where it has them; dead
         // controlled agents stay frozen where they stopped.
-        let alive_t = bool_tensor(alive.clone(), [b, n], &device);
-        let log_next = dynamics.init_aux(logged_state(h + k + 1), &zero_controls);
-        let log_valid_next = to_bool(&valid_at(h + k + 1));
+        let t_next = h + k + 1;
         let replay: Vec<bool> = (0..b * n)
-            .map(|i| !controlled[i] && log_valid_next[i])
+            .map(|i| !controlled[i] && t_next < t_total && log_valid[i * t_total + t_next])
             .collect();
-        let replay_t = bool_tensor(replay.clone(), [b, n], &device);
-        let frozen = state.clone().select(&replay_t.clone().bool_not(), log_next);
-        state = stepped.select(&alive_t, frozen);
+        // Tensor selects only when some agent needs them (the common case has none).
+        let frozen = if replay.iter().any(|&r| r) {
+            let replay_t = bool_tensor(replay.clone(), [b, n], &device);
+            let log_next = dynamics.init_aux(logged_state(t_next), &zero_controls);
+            state.clone().select(&replay_t.bool_not(), log_next)
+        } else {
+            state.clone()
+        };
+        state = if alive.iter().all(|&a| a) {
+            stepped
+        } else {
+            stepped.select(&bool_tensor(alive.clone(), [b, n], &device), frozen)
+        };
 
         let pose = pose_of(&state);
-        let (cx, cy) = (
-            to_f32(&pose.clone().narrow(2, 0, 1).reshape([b, n])),
-            to_f32(&pose.clone().narrow(2, 1, 1).reshape([b, n])),
-        );
-        let heading = to_f32(&state.heading);
+        // One read-back per step for the (non-differentiated) infraction checks.
+        let host = pose
+            .to_data()
+            .convert::<f32>()
+            .try_into_vec::<f32>()
+            .unwrap_or_default();
+        let channel = |c: usize| -> Vec<f32> {
+            host.iter()
+                .skip(c)
+                .step_by(FRAME_FEATURES)
+                .copied()
+                .collect()
+        };
+        let (cx, cy, heading) = (channel(0), channel(1), channel(2));
         present = (0..b * n).map(|i| alive[i] || replay[i]).collect();
         let flags = check_step(
             &StepBoxes {
