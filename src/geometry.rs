@@ -108,6 +108,7 @@ impl OrientedBox {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::test_rng::uniform;
     use std::f64::consts::PI;
 
     #[test]
@@ -136,16 +137,6 @@ mod tests {
         assert!(a.overlaps(&r)); // corner at 3.2 - sqrt(2) = 1.79 < 2
         let r = OrientedBox::new([3.5, 0.0], PI / 4.0, 2.0, 2.0);
         assert!(!a.overlaps(&r)); // 3.5 - 1.414 = 2.086 > 2
-    }
-
-    /// SplitMix64: a few random numbers for the cross-check without a dependency.
-    fn uniform(state: &mut u64, lo: f64, hi: f64) -> f64 {
-        *state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = *state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^= z >> 31;
-        lo + (hi - lo) * (z >> 11) as f64 / (1u64 << 53) as f64
     }
 
     #[test]

@@ -12,5 +12,7 @@ pub mod map;
 pub mod render;
 pub mod scene;
 pub mod sim;
+#[cfg(test)]
+mod test_rng;
 
 pub use error::{Error, Result};

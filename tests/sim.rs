@@ -11,7 +11,8 @@ use rtr::data::{AgentState, VehicleClass};
 use rtr::map::{BoxOnRoad, LaneGraph, Map, ProceduralMap};
 use rtr::scene::{AgentRole, Scene, SceneAgent, SceneBatch};
 use rtr::sim::{
-    Controls, Dynamics, MapCaches, Observation, RolloutConfig, Scripted, replay_logs, rollout,
+    Controls, Dynamics, MapCaches, Observation, RolloutConfig, Scripted, coast, replay_logs,
+    rollout,
 };
 
 #[allow(deprecated)]
@@ -59,7 +60,7 @@ fn scripted_agents_take_the_script_and_others_the_policy() {
         accel: Tensor::ones(obs.state.speed.dims(), &obs.state.speed.device()).mul_scalar(2.0),
         steer: Tensor::zeros(obs.state.speed.dims(), &obs.state.speed.device()),
     };
-    let mut policy = zero_policy;
+    let mut policy = coast;
     let mut mixed = Scripted {
         policy: &mut policy,
         script: &mut script,
@@ -135,22 +136,13 @@ fn straight_scene(agents: &[(f64, f64, f64, f64)], future: usize) -> Scene {
     }
 }
 
-fn zero_policy(obs: &Observation) -> Controls {
-    let dims = obs.state.speed.dims();
-    let device = obs.state.speed.device();
-    Controls {
-        accel: Tensor::zeros(dims, &device),
-        steer: Tensor::zeros(dims, &device),
-    }
-}
-
 fn run(scene: &Scene) -> rtr::sim::Rollout {
     let batch = SceneBatch::from_scenes(&[scene], &cpu()).expect("batch");
     rollout(
         &[scene],
         &batch,
         &Dynamics::bicycle(0.5),
-        &mut zero_policy,
+        &mut coast,
         &mut MapCaches::default(),
         &RolloutConfig::default(),
     )

@@ -70,6 +70,27 @@ pub struct LaneProjection {
     pub distance: f64,
 }
 
+/// A box from its outline points: all on the road → OnRoad; otherwise none off the road →
+/// Exiting; else OffRoad. `locate` is the point query (exact or grid-cached).
+pub(super) fn classify_outline(
+    b: &OrientedBox,
+    mut locate: impl FnMut([f64; 2]) -> PointLocation,
+) -> BoxOnRoad {
+    let mut exiting = false;
+    for p in b.outline(BOX_OUTLINE_SPACING) {
+        match locate(p) {
+            PointLocation::OnRoad => {}
+            PointLocation::BeyondRoadEnd => exiting = true,
+            PointLocation::OffRoad => return BoxOnRoad::OffRoad,
+        }
+    }
+    if exiting {
+        BoxOnRoad::Exiting
+    } else {
+        BoxOnRoad::OnRoad
+    }
+}
+
 #[derive(Clone, Copy, Debug)]
 enum Leaf {
     Chunk { road: usize },
@@ -273,19 +294,7 @@ impl Map {
 
     /// Classifies a vehicle footprint by its outline points, [`BOX_OUTLINE_SPACING`] apart.
     pub fn box_on_road(&self, b: &OrientedBox) -> BoxOnRoad {
-        let mut exiting = false;
-        for p in b.outline_points(BOX_OUTLINE_SPACING) {
-            match self.point_location(p) {
-                PointLocation::OnRoad => {}
-                PointLocation::BeyondRoadEnd => exiting = true,
-                PointLocation::OffRoad => return BoxOnRoad::OffRoad,
-            }
-        }
-        if exiting {
-            BoxOnRoad::Exiting
-        } else {
-            BoxOnRoad::OnRoad
-        }
+        classify_outline(b, |p| self.point_location(p))
     }
 
     /// The nearest graph-lane centerline to `p`, preferring lanes whose travel direction is

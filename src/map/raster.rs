@@ -9,7 +9,7 @@
 //! default 0.25 m cell makes negligible.
 
 use super::lanes::Map;
-use super::query::{BEYOND_END_RANGE, BOX_OUTLINE_SPACING, BoxOnRoad, PointLocation};
+use super::query::{BEYOND_END_RANGE, BoxOnRoad, PointLocation, classify_outline};
 use crate::geometry::OrientedBox;
 
 const ON: u8 = 0;
@@ -107,19 +107,7 @@ impl RoadRaster {
                 return BoxOnRoad::OnRoad;
             }
         }
-        let mut exiting = false;
-        for p in b.outline(BOX_OUTLINE_SPACING) {
-            match self.point_location(map, p) {
-                PointLocation::OnRoad => {}
-                PointLocation::BeyondRoadEnd => exiting = true,
-                PointLocation::OffRoad => return BoxOnRoad::OffRoad,
-            }
-        }
-        if exiting {
-            BoxOnRoad::Exiting
-        } else {
-            BoxOnRoad::OnRoad
-        }
+        classify_outline(b, |p| self.point_location(map, p))
     }
 }
 

@@ -16,7 +16,7 @@ use burn::prelude::*;
 use super::dynamics::Dynamics;
 use super::infractions::MapCaches;
 use super::loss::imitation_loss;
-use super::rollout::{Observation, RolloutConfig, rollout};
+use super::rollout::{Observation, RolloutConfig, coast, rollout};
 use super::state::Controls;
 use crate::backend::Backend;
 use crate::data::{AgentState, VehicleClass};
@@ -139,23 +139,24 @@ impl BenchMlp {
     }
 }
 
-fn zero_policy(obs: &Observation) -> Controls {
-    let dims = obs.state.speed.dims();
-    let device = obs.state.speed.device();
-    Controls {
-        accel: Tensor::zeros(dims, &device),
-        steer: Tensor::zeros(dims, &device),
-    }
-}
-
 /// Runs both measurements on `map` with `backend`; `repetitions` timed runs each (median).
 pub fn run(map: Arc<Map>, backend: Backend, repetitions: usize) -> Result<SimBench> {
     let graph = Arc::new(LaneGraph::build(&map, 10.0));
     let dynamics = Dynamics::bicycle(0.5);
     let mut caches = MapCaches::default();
-    let median = |mut v: Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        v[v.len() / 2]
+    // One untimed warm-up run (builds the map's query grid, first-use kernel setup), then
+    // the median of `repetitions` timed runs.
+    let repetitions = repetitions.max(1);
+    let median_time = |f: &mut dyn FnMut() -> Result<()>| -> Result<f64> {
+        f()?;
+        let mut times = Vec::with_capacity(repetitions);
+        for _ in 0..repetitions {
+            let start = Instant::now();
+            f()?;
+            times.push(start.elapsed().as_secs_f64());
+        }
+        times.sort_by(f64::total_cmp);
+        Ok(times[times.len() / 2])
     };
 
     let (b, n, steps) = (64, 50, 10);
@@ -166,29 +167,10 @@ pub fn run(map: Arc<Map>, backend: Backend, repetitions: usize) -> Result<SimBen
     let device = backend.device(false)?;
     let batch = SceneBatch::from_scenes(&refs, &device)?;
     let config = RolloutConfig::default();
-    // Warm-up (builds the map's query grid, first-use kernel setup).
-    rollout(
-        &refs,
-        &batch,
-        &dynamics,
-        &mut zero_policy,
-        &mut caches,
-        &config,
-    )?;
-    let mut times = Vec::new();
-    for _ in 0..repetitions {
-        let start = Instant::now();
-        rollout(
-            &refs,
-            &batch,
-            &dynamics,
-            &mut zero_policy,
-            &mut caches,
-            &config,
-        )?;
-        times.push(start.elapsed().as_secs_f64());
-    }
-    let agent_steps_per_s = (b * n * steps) as f64 / median(times);
+    let step_time = median_time(&mut || {
+        rollout(&refs, &batch, &dynamics, &mut coast, &mut caches, &config).map(|_| ())
+    })?;
+    let agent_steps_per_s = (b * n * steps) as f64 / step_time;
 
     let (gb, gn, gsteps) = (32, 20, 10);
     let scenes: Vec<Scene> = (0..gb)
@@ -198,19 +180,12 @@ pub fn run(map: Arc<Map>, backend: Backend, repetitions: usize) -> Result<SimBen
     let device = backend.device(true)?;
     let batch = SceneBatch::from_scenes(&refs, &device)?;
     let policy = BenchMlp::new(&device);
-    let mut grad_once = || -> Result<()> {
+    let grad_time = median_time(&mut || {
         let mut act = |obs: &Observation| policy.act(obs);
         let out = rollout(&refs, &batch, &dynamics, &mut act, &mut caches, &config)?;
         let _grads = imitation_loss(&out, &batch, 1.0).mean().backward();
         Ok(())
-    };
-    grad_once()?;
-    let mut times = Vec::new();
-    for _ in 0..repetitions {
-        let start = Instant::now();
-        grad_once()?;
-        times.push(start.elapsed().as_secs_f64());
-    }
+    })?;
     Ok(SimBench {
         bench: "sim",
         backend: backend.to_string(),
@@ -220,7 +195,7 @@ pub fn run(map: Arc<Map>, backend: Backend, repetitions: usize) -> Result<SimBen
         agent_steps_per_s,
         grad_batch: [gb, gn],
         grad_steps: gsteps,
-        rollout_grad_ms: 1e3 * median(times),
+        rollout_grad_ms: 1e3 * grad_time,
         repetitions,
     })
 }

@@ -121,16 +121,7 @@ pub fn check_step(boxes: &StepBoxes, maps: &[MapCache]) -> StepInfractions {
 mod tests {
     use super::*;
     use crate::map::{Map, ProceduralMap};
-
-    fn uniform(state: &mut u64, lo: f64, hi: f64) -> f64 {
-        // SplitMix64.
-        *state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = *state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^= z >> 31;
-        lo + (hi - lo) * (z >> 11) as f64 / (1u64 << 53) as f64
-    }
+    use crate::test_rng::uniform;
 
     #[test]
     fn batched_collisions_equal_parry2d_pairwise() {

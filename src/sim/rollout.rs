@@ -52,6 +52,16 @@ impl<F: FnMut(&Observation) -> Controls> Policy for F {
     }
 }
 
+/// A policy that applies no acceleration and no steering: every agent coasts straight.
+pub fn coast(obs: &Observation) -> Controls {
+    let dims = obs.state.speed.dims();
+    let device = obs.state.speed.device();
+    Controls {
+        accel: Tensor::zeros(dims, &device),
+        steer: Tensor::zeros(dims, &device),
+    }
+}
+
 /// Drives the agents in `mask` with `script` (e.g. long-tail hero agents) and all others with
 /// `policy`, both through the same dynamics.
 pub struct Scripted<'p, 's> {
