@@ -29,6 +29,9 @@ pub const HIGHLIGHT: RGBColor = RGBColor(214, 39, 40);
 const DASH_M: f64 = 6.0;
 const GAP_M: f64 = 12.0;
 
+/// Widest picture drawn (px); beyond it the bitmap alone would take gigabytes.
+pub const MAX_WIDTH_PX: u32 = 20_000;
+
 #[derive(Debug, Clone)]
 pub struct RenderOptions {
     /// Image width in pixels; the height follows the map's aspect ratio.
@@ -60,6 +63,12 @@ struct View {
 
 impl View {
     fn fit(map: &Map, opts: &RenderOptions) -> Result<View> {
+        if !(16..=MAX_WIDTH_PX).contains(&opts.width_px) {
+            return Err(Error::InvalidArgument(format!(
+                "image width {} px: expected 16 to {MAX_WIDTH_PX} px",
+                opts.width_px
+            )));
+        }
         // Axial mean of lane headings (directions modulo pi), so opposite carriageways agree.
         let (mut s2, mut c2) = (0.0, 0.0);
         for lane in map.lanes() {

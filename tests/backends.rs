@@ -10,6 +10,7 @@ use burn::prelude::*;
 use burn::tensor::TensorData;
 use rtr::backend::Backend;
 use rtr::scene::{Scene, SceneBatch};
+use rtr::sim::bench::agent_features;
 use rtr::sim::{
     Controls, Dynamics, MapCaches, Observation, RolloutConfig, imitation_loss, rollout,
 };
@@ -24,16 +25,7 @@ fn run(backend: Backend, scenes: &[&Scene]) -> (f64, Vec<f64>, Vec<f64>) {
     let w2 = Tensor::<2>::from_data(TensorData::new(w2_init, [8, 2]), &device);
     let mut policy = |obs: &Observation| {
         let [b, n] = obs.state.speed.dims();
-        let h = obs.state.heading.clone();
-        let x = Tensor::<2>::stack::<3>(
-            vec![
-                obs.state.speed.clone().div_scalar(30.0),
-                h.clone().sin(),
-                h.cos(),
-            ],
-            2,
-        )
-        .reshape([b * n, 3]);
+        let x = agent_features(obs).reshape([b * n, 3]);
         let out = x
             .matmul(w1.clone())
             .tanh()

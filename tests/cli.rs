@@ -68,6 +68,10 @@ fn bad_arguments_fail_with_a_message() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("no/such/folder"), "{err}");
 
+    let out = rtr(&["render", "--width", "0", "--out", "unused.png"]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("expected 16 to"));
+
     let out = rtr(&["render", "--out", "scene.bmp"]);
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains(".png or .svg"));

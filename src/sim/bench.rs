@@ -104,6 +104,20 @@ pub fn synthetic_scene(
     }
 }
 
+/// Frame-free per-agent inputs of the small benchmark and test policies: `[B, N, 3]` =
+/// (speed / 30 m/s, sin heading, cos heading).
+pub fn agent_features(obs: &Observation) -> Tensor<3> {
+    let h = obs.state.heading.clone();
+    Tensor::<2>::stack::<3>(
+        vec![
+            obs.state.speed.clone().div_scalar(30.0),
+            h.clone().sin(),
+            h.cos(),
+        ],
+        2,
+    )
+}
+
 /// The small policy of the gradient benchmark: per agent (speed, sin, cos of heading) -> 64
 /// -> 64 -> (accel, steer).
 #[derive(Module, Debug)]
@@ -124,15 +138,7 @@ impl BenchMlp {
 
     pub fn act(&self, obs: &Observation) -> Controls {
         let [b, n] = obs.state.speed.dims();
-        let h = obs.state.heading.clone();
-        let x = Tensor::<2>::stack::<3>(
-            vec![
-                obs.state.speed.clone().div_scalar(30.0),
-                h.clone().sin(),
-                h.cos(),
-            ],
-            2,
-        );
+        let x = agent_features(obs);
         let x = self.input.forward(x).tanh();
         let x = self.hidden.forward(x).tanh();
         Controls::from_stacked(self.output.forward(x).mul_scalar(0.1).reshape([b, n, 2]))
