@@ -3,9 +3,9 @@
 //! Today it runs what rtr has: it loads the real A9 recording and its OpenDRIVE map, builds
 //! the lane graph and the train/test scenes, batches them into tensors, replays the logged
 //! drivers in closed loop through the differentiable simulator (inverse-model controls) and
-//! measures their infractions, and draws a scene. The policy, training (BC, IL, RL, RTR) and
-//! the paper's evaluation table are not built yet (open issues); this demo says so instead of
-//! pretending.
+//! measures their infractions, lets the (untrained, paper-size) policy network drive the same
+//! scenes in closed loop, and draws a scene. Training (BC, IL, RL, RTR) and the paper's
+//! evaluation table are not built yet (open issues); this demo says so instead of pretending.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -13,10 +13,12 @@ use std::time::Instant;
 use burn::prelude::*;
 use clap::Parser;
 
+use burn::module::Module;
 use rtr::data::{A9Dataset, SceneConfig, a9, logged_infractions};
+use rtr::model::{ActionMode, ModelConfig, NetworkPolicy, PolicyNetwork};
 use rtr::render::{RenderOptions, render_scene};
 use rtr::scene::SceneBatch;
-use rtr::sim::{Dynamics, replay_logs};
+use rtr::sim::{Dynamics, MapCaches, RolloutConfig, imitation_loss, replay_logs, rollout};
 
 #[derive(Parser)]
 #[command(about = "rtr end-to-end demo on the shipped A9 recording")]
@@ -92,6 +94,36 @@ fn run(args: Args) -> rtr::Result<()> {
         replay.collisions,
         replay.offroad
     );
+    // The policy network (paper size, random weights until training exists) driving the
+    // batch in closed loop: the plumbing end to end, not a result.
+    let started = Instant::now();
+    device.seed(0);
+    let network = PolicyNetwork::new(&ModelConfig::default(), &device);
+    let mut policy = NetworkPolicy::new(&network, &batch, ActionMode::Mean);
+    let driven = rollout(
+        &first,
+        &batch,
+        &dynamics,
+        &mut policy,
+        &mut MapCaches::default(),
+        &RolloutConfig::default(),
+    )?;
+    let loss = imitation_loss(&driven, &batch, 1.0)
+        .mean()
+        .into_scalar::<f32>();
+    let count = |flags: Tensor<3, burn::tensor::Bool>| flags.int().sum().into_scalar::<i64>();
+    println!(
+        "untrained policy network ({} parameters) drove {} test scenes for {} steps in {:.1} s: \
+         Huber imitation loss {:.2}, {} collisions, {} off-road (training is issue #6)",
+        network.num_params(),
+        first.len(),
+        driven.steps,
+        started.elapsed().as_secs_f64(),
+        loss,
+        count(driven.collision),
+        count(driven.offroad)
+    );
+
     let all = logged_infractions(rec, &dataset.map);
     println!(
         "whole recording at 29.97 Hz: {:.2}% of vehicles ever off-road, {:.2}% ever overlap another",
@@ -115,8 +147,7 @@ fn run(args: Args) -> rtr::Result<()> {
     }
 
     println!(
-        "\nnot yet built (open issues): policy and value networks (#4), \
-         long-tail scenarios (#5), BC/IL/RL/RTR training (#6), evaluation table (#7), sim-to-real (#8).\n\
+        "\nnot yet built (open issues): long-tail scenarios (#5), BC/IL/RL/RTR training (#6), evaluation table (#7), sim-to-real (#8).\n\
          done in {:.1} s",
         clock.elapsed().as_secs_f64()
     );

@@ -9,6 +9,7 @@ pub mod error;
 pub mod geometry;
 pub mod io;
 pub mod map;
+pub mod model;
 pub mod render;
 pub mod scene;
 pub mod sim;

@@ -156,3 +156,51 @@ fn bench_sim_prints_its_figures_and_names_missing_backends() {
         assert!(String::from_utf8_lossy(&out.stderr).contains("--features wgpu"));
     }
 }
+
+#[test]
+fn model_info_counts_parameters_and_rejects_bad_configs() {
+    let out = rtr(&["model", "info", "--json"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
+    assert_eq!(report["config"]["hidden"], 128);
+    let policy = report["policy"]["total"].as_u64().expect("policy total");
+    let value = report["value"]["total"].as_u64().expect("value total");
+    assert_eq!(report["params"].as_u64(), Some(policy + value));
+    assert!(
+        policy > 1_000_000,
+        "paper-size policy has {policy} parameters"
+    );
+
+    let text = rtr(&["model", "info", "--small"]);
+    assert!(text.status.success());
+    assert!(String::from_utf8_lossy(&text.stdout).contains("policy + value"));
+
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("model.toml");
+    std::fs::write(&path, "hidden = 64\nhistory_kernel = 2\n").expect("write");
+    let bad = rtr(&[
+        "model",
+        "info",
+        "--config",
+        path.to_str().expect("utf-8 path"),
+    ]);
+    assert!(!bad.status.success());
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(
+        err.contains("model.toml") && err.contains("history_kernel"),
+        "{err}"
+    );
+    std::fs::write(&path, "hidden = \"wide\"\n").expect("write");
+    let bad = rtr(&[
+        "model",
+        "info",
+        "--config",
+        path.to_str().expect("utf-8 path"),
+    ]);
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(!bad.status.success() && err.contains("line 1"), "{err}");
+}

@@ -8,6 +8,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use rtr::backend::Backend;
 use rtr::data::{A9Dataset, SceneConfig, a9, summarize};
 use rtr::map::{LaneGraph, Map, ProceduralMap, to_xodr};
+use rtr::model::{ModelConfig, PolicyNetwork, ValueNetwork};
 use rtr::render::{RenderOptions, output_paths, render_map, render_scene};
 use rtr::{Error, Result};
 
@@ -41,26 +42,53 @@ enum Command {
         #[command(subcommand)]
         command: MapCommand,
     },
+    /// The policy and value networks.
+    Model {
+        #[command(subcommand)]
+        command: ModelCommand,
+    },
+}
+
+#[derive(Subcommand)]
+enum ModelCommand {
+    /// Configuration and parameter counts of the policy and value networks.
+    Info {
+        /// A model config (TOML); missing fields take the paper's defaults.
+        #[arg(long)]
+        config: Option<PathBuf>,
+        /// The small configuration of the tests and the quick example.
+        #[arg(long, conflicts_with = "config")]
+        small: bool,
+        /// Print one JSON object instead of text.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 #[derive(Subcommand)]
 enum BenchCommand {
     /// Closed-loop simulator: non-neural agent-steps/s (B=64 x N=50) and rollout gradient time
     /// (T=10, B=32 x N=20) on the A9 map.
-    Sim {
-        #[command(flatten)]
-        data: DataArgs,
-        /// ndarray, flex or wgpu (the latter two need their cargo features).
-        #[arg(long, default_value = "ndarray")]
-        backend: Backend,
-        /// Timed repetitions per measurement (the median is reported).
-        #[arg(long, default_value_t = 5)]
-        repetitions: usize,
-        /// Print one JSON object (the default output is JSON too; the flag is accepted for
-        /// symmetry with other commands).
-        #[arg(long)]
-        json: bool,
-    },
+    Sim(BenchArgs),
+    /// Policy + value networks at the paper's size (hidden 128): forward and forward+backward
+    /// time and peak memory for B=32 scenes x N=32 agents, H=5, on the A9 lane graph.
+    Model(BenchArgs),
+}
+
+#[derive(Args)]
+struct BenchArgs {
+    #[command(flatten)]
+    data: DataArgs,
+    /// ndarray, flex or wgpu (the latter two need their cargo features).
+    #[arg(long, default_value = "ndarray")]
+    backend: Backend,
+    /// Timed repetitions per measurement (the median is reported).
+    #[arg(long, default_value_t = 5)]
+    repetitions: usize,
+    /// Print one JSON object (the only output format; the flag is accepted for symmetry with
+    /// other commands).
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(Subcommand)]
@@ -222,29 +250,85 @@ fn run(cli: Cli) -> Result<()> {
         }
         Command::Render(args) => render(args),
         Command::Map { command } => map_command(command),
-        Command::Bench {
+        Command::Model {
             command:
-                BenchCommand::Sim {
-                    data,
-                    backend,
-                    repetitions,
-                    json: _,
+                ModelCommand::Info {
+                    config,
+                    small,
+                    json,
                 },
-        } => {
-            if repetitions == 0 {
-                return Err(Error::InvalidArgument(
-                    "--repetitions must be at least 1".into(),
-                ));
-            }
-            let dir = data.data.clone().unwrap_or_else(a9::default_dir);
-            let map = Map::from_xodr_file(&dir.join(a9::STATIC_FILE))?;
-            let report = rtr::sim::bench::run(std::sync::Arc::new(map), backend, repetitions)?;
-            let text = serde_json::to_string(&report)
-                .map_err(|e| Error::InvalidArgument(format!("cannot encode report: {e}")))?;
-            println!("{text}");
-            Ok(())
+        } => model_info(config, small, json),
+        Command::Bench { command } => bench(command),
+    }
+}
+
+fn bench(command: BenchCommand) -> Result<()> {
+    let (BenchCommand::Sim(args) | BenchCommand::Model(args)) = &command;
+    if args.repetitions == 0 {
+        return Err(Error::InvalidArgument(
+            "--repetitions must be at least 1".into(),
+        ));
+    }
+    let dir = args.data.data.clone().unwrap_or_else(a9::default_dir);
+    let map = std::sync::Arc::new(Map::from_xodr_file(&dir.join(a9::STATIC_FILE))?);
+    let (backend, repetitions) = (args.backend, args.repetitions);
+    let report = match command {
+        BenchCommand::Sim(_) => {
+            serde_json::to_value(rtr::sim::bench::run(map, backend, repetitions)?)
+        }
+        BenchCommand::Model(_) => {
+            serde_json::to_value(rtr::model::bench::run(map, backend, repetitions)?)
         }
     }
+    .map_err(|e| Error::InvalidArgument(format!("cannot encode report: {e}")))?;
+    println!("{report}");
+    Ok(())
+}
+
+fn model_info(config: Option<PathBuf>, small: bool, json: bool) -> Result<()> {
+    let config = match (&config, small) {
+        (Some(path), _) => ModelConfig::from_toml_file(path)?,
+        (None, true) => ModelConfig::small(),
+        (None, false) => ModelConfig::default(),
+    };
+    // Parameter counting needs no gradients; the plain CPU device is always compiled in.
+    let device = Backend::NdArray.device(false)?;
+    let policy = PolicyNetwork::new(&config, &device).parameter_counts();
+    let value = ValueNetwork::new(&config, &device).parameter_counts();
+    if json {
+        let report = serde_json::json!({
+            "config": config,
+            "policy": policy,
+            "value": value,
+            "params": policy.total + value.total,
+        });
+        println!("{report:#}");
+        return Ok(());
+    }
+    let text = toml::to_string(&config)
+        .map_err(|e| Error::InvalidArgument(format!("cannot encode config: {e}")))?;
+    println!("# model config\n{text}");
+    println!("{:<22} {:>12} {:>12}", "parameters", "policy", "value");
+    let rows = [
+        (
+            "history encoder",
+            policy.history_encoder,
+            value.history_encoder,
+        ),
+        (
+            "lane-graph encoder",
+            policy.lane_graph_encoder,
+            value.lane_graph_encoder,
+        ),
+        ("interaction (GNN)", policy.interaction, value.interaction),
+        ("head (MLP)", policy.head, value.head),
+        ("total", policy.total, value.total),
+    ];
+    for (name, p, v) in rows {
+        println!("{name:<22} {p:>12} {v:>12}");
+    }
+    println!("policy + value: {}", policy.total + value.total);
+    Ok(())
 }
 
 fn map_command(command: MapCommand) -> Result<()> {

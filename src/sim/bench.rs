@@ -50,18 +50,20 @@ fn along(points: &[[f64; 2]], cum: &[f64], s: f64) -> ([f64; 2], f64) {
 }
 
 /// A scene of `agents` controlled cars spread over the map's graph lanes, each logged at
-/// constant speed along its lane centreline. `seed` shifts the placement.
+/// constant speed along its lane centreline for `history` past and `future` steps. `seed`
+/// shifts the placement.
 pub fn synthetic_scene(
     map: &Arc<Map>,
     graph: &Arc<LaneGraph>,
     agents: usize,
     seed: usize,
+    history: usize,
     future: usize,
 ) -> Scene {
     let lanes: Vec<_> = map.lanes().iter().filter(|l| l.is_graph_lane()).collect();
     let per_lane = agents.div_ceil(lanes.len().max(1));
     let dt = 0.5;
-    let steps = 2 + future;
+    let steps = history + 1 + future;
     let mut out = Vec::with_capacity(agents);
     for i in 0..agents {
         let lane = lanes[i % lanes.len()];
@@ -71,7 +73,7 @@ pub fn synthetic_scene(
         let s0 = (slot as f64 + 0.2 + 0.05 * (seed % 5) as f64) * spacing;
         let states = (0..steps)
             .map(|k| {
-                let s = (s0 + speed * (k as f64 - 1.0) * dt).min(lane.length());
+                let s = (s0 + speed * (k as f64 - history as f64) * dt).clamp(0.0, lane.length());
                 let (p, heading) = along(&lane.centerline, &lane.s, s);
                 AgentState {
                     x: p[0],
@@ -96,12 +98,26 @@ pub fn synthetic_scene(
         id: format!("synthetic-{seed}"),
         t0: 0.0,
         dt,
-        history_steps: 1,
+        history_steps: history,
         future_steps: future,
         map: map.clone(),
         lane_graph: graph.clone(),
         agents: out,
     }
+}
+
+/// Seconds of one run of `f`: one untimed warm-up run (first-use setup: query grids, kernel
+/// compilation), then the median of `repetitions` (at least one) timed runs.
+pub fn median_seconds(repetitions: usize, f: &mut dyn FnMut() -> Result<()>) -> Result<f64> {
+    f()?;
+    let mut times = Vec::with_capacity(repetitions.max(1));
+    for _ in 0..repetitions.max(1) {
+        let start = Instant::now();
+        f()?;
+        times.push(start.elapsed().as_secs_f64());
+    }
+    times.sort_by(f64::total_cmp);
+    Ok(times[times.len() / 2])
 }
 
 /// Frame-free per-agent inputs of the small benchmark and test policies: `[B, N, 3]` =
@@ -150,24 +166,12 @@ pub fn run(map: Arc<Map>, backend: Backend, repetitions: usize) -> Result<SimBen
     let graph = Arc::new(LaneGraph::build(&map, 10.0));
     let dynamics = Dynamics::bicycle(0.5);
     let mut caches = MapCaches::default();
-    // One untimed warm-up run (builds the map's query grid, first-use kernel setup), then
-    // the median of `repetitions` timed runs.
     let repetitions = repetitions.max(1);
-    let median_time = |f: &mut dyn FnMut() -> Result<()>| -> Result<f64> {
-        f()?;
-        let mut times = Vec::with_capacity(repetitions);
-        for _ in 0..repetitions {
-            let start = Instant::now();
-            f()?;
-            times.push(start.elapsed().as_secs_f64());
-        }
-        times.sort_by(f64::total_cmp);
-        Ok(times[times.len() / 2])
-    };
+    let median_time = |f: &mut dyn FnMut() -> Result<()>| median_seconds(repetitions, f);
 
     let (b, n, steps) = (64, 50, 10);
     let scenes: Vec<Scene> = (0..b)
-        .map(|i| synthetic_scene(&map, &graph, n, i, steps))
+        .map(|i| synthetic_scene(&map, &graph, n, i, 1, steps))
         .collect();
     let refs: Vec<&Scene> = scenes.iter().collect();
     let device = backend.device(false)?;
@@ -180,7 +184,7 @@ pub fn run(map: Arc<Map>, backend: Backend, repetitions: usize) -> Result<SimBen
 
     let (gb, gn, gsteps) = (32, 20, 10);
     let scenes: Vec<Scene> = (0..gb)
-        .map(|i| synthetic_scene(&map, &graph, gn, i, gsteps))
+        .map(|i| synthetic_scene(&map, &graph, gn, i, 1, gsteps))
         .collect();
     let refs: Vec<&Scene> = scenes.iter().collect();
     let device = backend.device(true)?;

@@ -19,6 +19,7 @@ pub use limits::{ActionLimits, soft_clamp, soft_clamp_inverse};
 pub use loss::{ImitationLoss, huber, imitation_loss};
 pub use replay::{ReplayReport, replay_logs};
 pub use rollout::{
-    Frame, Observation, Policy, Rollout, RolloutConfig, Scripted, coast, rollout, rollout_from,
+    Frame, Observation, Policy, Rollout, RolloutConfig, Scripted, coast, logged_frames, rollout,
+    rollout_from,
 };
 pub use state::{Controls, VehicleState, WHEELBASE_RATIO, wheelbase_of};

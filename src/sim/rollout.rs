@@ -138,6 +138,23 @@ fn to_bool(t: &Tensor<2, Bool>) -> Vec<bool> {
     t.to_data().try_into_vec::<bool>().unwrap_or_default()
 }
 
+/// The logged frames of `batch` from its first step through `step`: what a policy sees before
+/// any simulation, and at any step of open-loop (behaviour cloning) training.
+pub fn logged_frames(batch: &SceneBatch, step: usize) -> Vec<Frame> {
+    let [b, n, t_total, _] = batch.agent_states.dims();
+    (0..=step.min(t_total - 1))
+        .map(|t| Frame {
+            poses: batch
+                .agent_states
+                .clone()
+                .narrow(2, t, 1)
+                .narrow(3, 0, FRAME_FEATURES)
+                .reshape([b, n, FRAME_FEATURES]),
+            present: batch.agent_valid.clone().narrow(2, t, 1).reshape([b, n]),
+        })
+        .collect()
+}
+
 /// Unrolls `policy` from the batch's current step, starting from the logged state.
 pub fn rollout(
     scenes: &[&Scene],
@@ -215,13 +232,7 @@ pub fn rollout_from(
         Tensor::stack(vec![cx, cy, s.heading.clone(), s.speed.clone()], 2)
     };
 
-    // Logged history frames up to the current step.
-    let mut frames: Vec<Frame> = (0..=h)
-        .map(|t| Frame {
-            poses: at(t).narrow(2, 0, FRAME_FEATURES),
-            present: valid_at(t),
-        })
-        .collect();
+    let mut frames = logged_frames(batch, h);
 
     let zero_controls = Controls {
         accel: Tensor::zeros([b, n], &device),

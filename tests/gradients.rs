@@ -1,11 +1,14 @@
-//! Imitation gradients through the closed-loop rollout against central finite differences,
-//! in f64. Its own test binary: the float dtype of the CPU device is configured once per
-//! process, before any tensor exists.
+//! Gradients against central finite differences, in f64: imitation through the closed-loop
+//! rollout, and the networks' max aggregation. Its own test binary: the float dtype of the CPU
+//! device is configured once per process, before any tensor exists.
 
 mod common;
 
+use std::sync::OnceLock;
+
 use burn::prelude::*;
-use burn::tensor::{FloatDType, TensorData};
+use burn::tensor::{Bool, FloatDType, Int, TensorData};
+use rtr::model::aggregate::{gather_neighbours, masked_max};
 use rtr::scene::{Scene, SceneBatch};
 use rtr::sim::{
     Controls, Dynamics, MapCaches, Observation, RolloutConfig, imitation_loss, rollout,
@@ -65,14 +68,77 @@ fn loss_for(
     imitation_loss(&out, batch, 1.0).mean()
 }
 
+/// The autodiff CPU device in f64, configured once for the whole test binary.
+fn f64_device() -> Device {
+    static DEVICE: OnceLock<Device> = OnceLock::new();
+    DEVICE
+        .get_or_init(|| {
+            #[allow(deprecated)]
+            let mut device = Device::ndarray().autodiff();
+            device.configure(FloatDType::F64).expect("f64 on the CPU");
+            device
+        })
+        .clone()
+}
+
+fn to_f64<const D: usize>(t: Tensor<D>) -> Vec<f64> {
+    t.into_data()
+        .convert::<f64>()
+        .try_into_vec::<f64>()
+        .expect("f64")
+}
+
+/// Several edges reach the same node and some lists are partly masked: the gradient of the
+/// max aggregation goes to each winner only, as central differences say (burn's scatter-max
+/// would also credit the losers).
+#[test]
+fn max_aggregation_gradient_matches_finite_differences() {
+    let device = f64_device();
+    let (b, m, r, k, c) = (2, 5, 4, 3, 3);
+    let nodes_init: Vec<f64> = (0..b * m * c)
+        .map(|i| ((i as f64) * 2.3 + 0.4).sin())
+        .collect();
+    let index: Vec<i64> = (0..b * r * k).map(|i| ((i * 7 + 3) % m) as i64).collect();
+    let mask: Vec<bool> = (0..b * r * k).map(|i| i % 5 != 2).collect();
+    let weights: Vec<f64> = (0..b * r * c).map(|i| ((i as f64) * 1.3).cos()).collect();
+    let index = Tensor::<3, Int>::from_data(TensorData::new(index, [b, r, k]), &device);
+    let mask = Tensor::<3, Bool>::from_data(TensorData::new(mask, [b, r, k]), &device);
+    let weights = Tensor::<3>::from_data(TensorData::new(weights, [b, r, c]), &device);
+    let loss = |nodes: Tensor<3>| {
+        // A smooth per-edge transform, so messages are not the raw rows.
+        let messages = gather_neighbours(nodes, index.clone())
+            .tanh()
+            .mul_scalar(2.0);
+        (masked_max(messages, mask.clone()) * weights.clone()).sum()
+    };
+    let tensor =
+        |v: &[f64]| Tensor::<3>::from_data(TensorData::new(v.to_vec(), [b, m, c]), &device);
+    let nodes = tensor(&nodes_init).require_grad();
+    let grads = loss(nodes.clone()).backward();
+    let analytic = to_f64(nodes.grad(&grads).expect("nodes reach the loss"));
+    let h = 1e-6;
+    let mut worst = 0.0f64;
+    for i in 0..nodes_init.len() {
+        let shifted = |delta: f64| {
+            let mut v = nodes_init.clone();
+            v[i] += delta;
+            to_f64(loss(tensor(&v)))[0]
+        };
+        let numeric = (shifted(h) - shifted(-h)) / (2.0 * h);
+        worst = worst.max((numeric - analytic[i]).abs() / numeric.abs().max(1e-3));
+    }
+    let nonzero = analytic.iter().filter(|g| **g != 0.0).count();
+    println!("max aggregation gradient: worst relative error {worst:e}, {nonzero} non-zero");
+    assert!(worst < 1e-6, "worst relative error {worst:e}");
+    assert!(nonzero > 4, "only {nonzero} gradient entries are non-zero");
+}
+
 #[test]
 fn rollout_gradient_matches_finite_differences_in_f64() {
     let split = common::a9_scenes();
     // Scenes with several agents that stay on the road for the 10 steps.
     let scenes: Vec<&Scene> = split.test.iter().step_by(20).take(3).collect();
-    #[allow(deprecated)]
-    let mut device = Device::ndarray().autodiff();
-    device.configure(FloatDType::F64).expect("f64 on the CPU");
+    let device = f64_device();
     let batch = SceneBatch::from_scenes(&scenes, &device).expect("batch");
     let mut caches = MapCaches::default();
     let w1_init: Vec<f64> = (0..24).map(|i| 0.3 * ((i as f64) * 1.7).sin()).collect();

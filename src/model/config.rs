@@ -1,0 +1,215 @@
+//! Sizes and input encodings of the policy and value networks, as a serde config (TOML in
+//! experiment files). The defaults are the paper's (hidden 128, lane encoder [128; 4], action
+//! MLP [128, 128, 128]).
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ModelConfig {
+    /// Width of every node embedding (agents and lane nodes).
+    pub hidden: usize,
+    /// Past frames the history encoder sees, the current one included.
+    pub history_steps: usize,
+    /// Residual blocks of the 1D CNN before the GRU.
+    pub history_blocks: usize,
+    /// Temporal kernel of the 1D CNN.
+    pub history_kernel: usize,
+    /// Graph-convolution layers of the lane-graph encoder (LaneGCN).
+    pub lane_layers: usize,
+    /// Message-passing rounds of the HeteroGNN over agents and lane nodes.
+    pub interaction_rounds: usize,
+    /// Each agent receives from its this many closest lane nodes.
+    pub agent_lane_edges: usize,
+    /// Each lane node receives from its this many closest agents within `lane_agent_radius`.
+    pub lane_agent_edges: usize,
+    /// Metres.
+    pub lane_agent_radius: f64,
+    /// Hidden widths of the action and value decoders (the paper's 4-layer MLP has three).
+    pub head_hidden: Vec<usize>,
+    /// Wavelengths (m) of the sine/cosine encoding of distances between two poses.
+    pub distance_wavelengths: Vec<f64>,
+    /// Physical size of one unit of the action mean: (m/s^2, rad).
+    pub action_scale: [f64; 2],
+    /// Range of log sigma, relative to `action_scale`: sigma = scale * exp(value in range).
+    pub log_std_range: [f64; 2],
+}
+
+impl Default for ModelConfig {
+    fn default() -> Self {
+        Self {
+            hidden: 128,
+            history_steps: 5,
+            history_blocks: 2,
+            history_kernel: 3,
+            lane_layers: 4,
+            interaction_rounds: 3,
+            agent_lane_edges: 8,
+            lane_agent_edges: 4,
+            lane_agent_radius: 30.0,
+            head_hidden: vec![128, 128, 128],
+            distance_wavelengths: vec![4.0, 16.0, 64.0, 256.0],
+            action_scale: [2.0, 0.02],
+            log_std_range: [-4.0, 1.0],
+        }
+    }
+}
+
+impl ModelConfig {
+    /// A small network for tests and the quick example (same structure, narrow layers).
+    pub fn small() -> Self {
+        Self {
+            hidden: 32,
+            lane_layers: 2,
+            interaction_rounds: 2,
+            head_hidden: vec![32, 32, 32],
+            ..Self::default()
+        }
+    }
+
+    /// Reads a TOML file; missing fields take the defaults.
+    pub fn from_toml_file(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        Self::from_toml_str(&text, &path.display().to_string())
+    }
+
+    /// Parses TOML text; `source_name` names it in errors.
+    pub fn from_toml_str(text: &str, source_name: &str) -> Result<Self> {
+        let config: Self = toml::from_str(text).map_err(|e| {
+            let (line, column) = e
+                .span()
+                .map(|span| line_column(text, span.start))
+                .unwrap_or((0, 0));
+            Error::Parse {
+                source_name: source_name.to_string(),
+                line,
+                column,
+                message: e.message().to_string(),
+            }
+        })?;
+        config.validate(source_name)?;
+        Ok(config)
+    }
+
+    /// Checks every size and range; `source_name` names the config in errors.
+    pub fn validate(&self, source_name: &str) -> Result<()> {
+        let fail = |field: &str, message: String| {
+            Err(Error::invalid(
+                source_name,
+                format!("model config field `{field}`"),
+                message,
+            ))
+        };
+        let positive = [
+            ("hidden", self.hidden),
+            ("history_steps", self.history_steps),
+            ("history_kernel", self.history_kernel),
+            ("agent_lane_edges", self.agent_lane_edges),
+            ("lane_agent_edges", self.lane_agent_edges),
+        ];
+        for (field, value) in positive {
+            if value == 0 {
+                return fail(field, "expected a positive integer, got 0".into());
+            }
+        }
+        if self.history_kernel.is_multiple_of(2) {
+            return fail(
+                "history_kernel",
+                format!(
+                    "expected an odd kernel (the sequence keeps its length), got {}",
+                    self.history_kernel
+                ),
+            );
+        }
+        if self.head_hidden.contains(&0) {
+            return fail("head_hidden", "expected positive widths".into());
+        }
+        if !(self.lane_agent_radius.is_finite() && self.lane_agent_radius > 0.0) {
+            return fail(
+                "lane_agent_radius",
+                format!("expected metres > 0, got {}", self.lane_agent_radius),
+            );
+        }
+        if self
+            .distance_wavelengths
+            .iter()
+            .any(|w| !(w.is_finite() && *w > 0.0))
+        {
+            return fail(
+                "distance_wavelengths",
+                "expected finite wavelengths > 0 (m)".into(),
+            );
+        }
+        if self
+            .action_scale
+            .iter()
+            .any(|s| !(s.is_finite() && *s > 0.0))
+        {
+            return fail(
+                "action_scale",
+                format!("expected two scales > 0, got {:?}", self.action_scale),
+            );
+        }
+        let [lo, hi] = self.log_std_range;
+        if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+            return fail(
+                "log_std_range",
+                format!("expected [low, high] with low < high, got [{lo}, {hi}]"),
+            );
+        }
+        Ok(())
+    }
+}
+
+/// 1-based line and column of byte `offset` in `text`.
+fn line_column(text: &str, offset: usize) -> (usize, usize) {
+    let before = &text[..offset.min(text.len())];
+    let line = before.matches('\n').count() + 1;
+    let column = before.chars().rev().take_while(|&c| c != '\n').count() + 1;
+    (line, column)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_are_the_papers_and_valid() {
+        let c = ModelConfig::default();
+        assert_eq!((c.hidden, c.lane_layers), (128, 4));
+        assert_eq!(c.head_hidden, vec![128, 128, 128]);
+        c.validate("default").unwrap();
+        ModelConfig::small().validate("small").unwrap();
+    }
+
+    #[test]
+    fn toml_overrides_and_errors_name_the_place() {
+        let c =
+            ModelConfig::from_toml_str("hidden = 64\nhead_hidden = [64, 64]\n", "m.toml").unwrap();
+        assert_eq!((c.hidden, c.head_hidden.len()), (64, 2));
+        assert_eq!(c.lane_layers, 4);
+
+        let err = ModelConfig::from_toml_str("hidden = 64\nhiden = 3\n", "m.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("m.toml") && err.contains("line 2"), "{err}");
+        assert!(err.contains("hiden"), "{err}");
+
+        let err = ModelConfig::from_toml_str("history_kernel = 4\n", "m.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("history_kernel") && err.contains("odd"),
+            "{err}"
+        );
+
+        let err = ModelConfig::from_toml_str("log_std_range = [1.0, -1.0]\n", "m.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("log_std_range"), "{err}");
+    }
+}

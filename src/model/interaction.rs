@@ -1,0 +1,274 @@
+//! Interaction module (paper appendix, GoRela's HeteroGNN): agent nodes join the lane graph;
+//! each agent receives from its closest lane nodes, each lane node from its closest agents
+//! within a radius, agents are fully connected to each other, and the lane-lane edges stay.
+//! Every edge type has its own message weights, and messages carry the sender's pose in the
+//! receiver's frame. Several synchronous rounds give the fused feature h_i of every agent.
+//!
+//! Edges are chosen on detached positions (the choice is discrete); the relative poses along
+//! them stay differentiable, so imitation gradients reach the simulated positions.
+
+use burn::module::Module;
+use burn::prelude::*;
+use burn::tensor::{Bool, Int};
+
+use super::aggregate::gather_neighbours;
+use super::config::ModelConfig;
+use super::input::{AgentInput, LaneInput};
+use super::lane_encoder::{LANE_RELATIONS, lane_messages};
+use super::message::{EdgeMessage, NodeUpdate};
+use super::relative_pose::relative_pose;
+
+/// Distance given to padded or absent nodes so nearest-neighbour choices rank them last.
+const FAR: f64 = 1e9;
+
+/// The agent-side edges of one forward pass.
+#[derive(Debug, Clone)]
+pub struct InteractionEdges {
+    /// Agent <- agent, dense: `[B, N, N, P]` pose and `[B, N, N]` mask (no self edges).
+    agent_agent_pose: Tensor<4>,
+    agent_agent_mask: Tensor<3, Bool>,
+    /// Agent <- its closest lane nodes: `[B, N, K]`.
+    agent_lane_index: Tensor<3, Int>,
+    agent_lane_pose: Tensor<4>,
+    agent_lane_mask: Tensor<3, Bool>,
+    /// Lane node <- its closest agents within the radius: `[B, L, K]`.
+    lane_agent_index: Tensor<3, Int>,
+    lane_agent_pose: Tensor<4>,
+    lane_agent_mask: Tensor<3, Bool>,
+}
+
+/// `[B, R, K]` bool: `mask` (`[B, M]`) of the gathered senders.
+fn gather_mask(mask: Tensor<2, Bool>, index: Tensor<3, Int>) -> Tensor<3, Bool> {
+    let [b, m] = mask.dims();
+    let [_, r, k] = index.dims();
+    gather_neighbours(mask.float().reshape([b, m, 1]), index)
+        .reshape([b, r, k])
+        .greater_elem(0.5)
+}
+
+/// Each receiver's `k` nearest senders: `[B, R, k]` index, relative pose, sender mask and
+/// distance.
+struct Nearest {
+    index: Tensor<3, Int>,
+    pose: Tensor<4>,
+    mask: Tensor<3, Bool>,
+    distance: Tensor<3>,
+}
+
+impl Nearest {
+    /// `distance` is `[B, R, S]` (senders to skip pushed to `FAR`); `k` is capped at S.
+    fn pick(
+        distance: Tensor<3>,
+        k: usize,
+        receiver_pose: &Tensor<3>,
+        sender_pose: &Tensor<3>,
+        sender_mask: &Tensor<2, Bool>,
+        wavelengths: &[f64],
+    ) -> Self {
+        let [b, r, s] = distance.dims();
+        let k = k.min(s);
+        let (negated, index) = distance.neg().topk_with_indices(k, 2);
+        let pose = relative_pose(
+            receiver_pose
+                .clone()
+                .unsqueeze_dim::<4>(2)
+                .expand([b, r, k, 3]),
+            gather_neighbours(sender_pose.clone(), index.clone()),
+            wavelengths,
+        );
+        Self {
+            mask: gather_mask(sender_mask.clone(), index.clone()),
+            index,
+            pose,
+            distance: negated.neg(),
+        }
+    }
+}
+
+impl InteractionEdges {
+    pub fn build(agents: &AgentInput, lanes: &LaneInput, config: &ModelConfig) -> Self {
+        let [b, n, _] = agents.pose.dims();
+        let l = lanes.nodes();
+        let wavelengths = &config.distance_wavelengths;
+        let device = agents.pose.device();
+
+        // Agent <- agent.
+        let receiver = agents
+            .pose
+            .clone()
+            .unsqueeze_dim::<4>(2)
+            .expand([b, n, n, 3]);
+        let sender = agents
+            .pose
+            .clone()
+            .unsqueeze_dim::<4>(1)
+            .expand([b, n, n, 3]);
+        let agent_agent_pose = relative_pose(receiver, sender, wavelengths);
+        let not_self = Tensor::<2, Int>::eye(n, &device)
+            .equal_elem(0)
+            .unsqueeze_dim::<3>(0)
+            .expand([b, n, n]);
+        let pair = agents
+            .mask
+            .clone()
+            .unsqueeze_dim::<3>(2)
+            .expand([b, n, n])
+            .bool_and(agents.mask.clone().unsqueeze_dim::<3>(1).expand([b, n, n]));
+        let agent_agent_mask = pair.bool_and(not_self);
+
+        // Distances agent x lane node on detached positions (choosing edges is discrete).
+        let xy = |pose: &Tensor<3>| pose.clone().detach().narrow(2, 0, 2);
+        let (a_xy, l_xy) = (xy(&agents.pose), xy(&lanes.pose));
+        let diff = a_xy.unsqueeze_dim::<4>(2).expand([b, n, l, 2])
+            - l_xy.unsqueeze_dim::<4>(1).expand([b, n, l, 2]);
+        let distance = diff.powi_scalar(2).sum_dim(3).reshape([b, n, l]).sqrt();
+        let lane_absent = lanes
+            .mask
+            .clone()
+            .bool_not()
+            .unsqueeze_dim::<3>(1)
+            .expand([b, n, l]);
+        let agent_absent = agents
+            .mask
+            .clone()
+            .bool_not()
+            .unsqueeze_dim::<3>(2)
+            .expand([b, n, l]);
+
+        // Agent <- its closest lane nodes.
+        let agent_lane = Nearest::pick(
+            distance.clone().mask_fill(lane_absent, FAR),
+            config.agent_lane_edges,
+            &agents.pose,
+            &lanes.pose,
+            &lanes.mask,
+            wavelengths,
+        );
+        // Lane node <- its closest agents within the radius.
+        let lane_agent = Nearest::pick(
+            distance.mask_fill(agent_absent, FAR).swap_dims(1, 2),
+            config.lane_agent_edges,
+            &lanes.pose,
+            &agents.pose,
+            &agents.mask,
+            wavelengths,
+        );
+        let lane_agent_mask = lane_agent
+            .distance
+            .lower_equal_elem(config.lane_agent_radius)
+            .bool_and(lane_agent.mask);
+
+        Self {
+            agent_agent_pose,
+            agent_agent_mask,
+            agent_lane_index: agent_lane.index,
+            agent_lane_pose: agent_lane.pose,
+            agent_lane_mask: agent_lane.mask,
+            lane_agent_index: lane_agent.index,
+            lane_agent_pose: lane_agent.pose,
+            lane_agent_mask,
+        }
+    }
+}
+
+/// One round's update of the agent nodes.
+#[derive(Module, Debug)]
+struct AgentRound {
+    from_agents: EdgeMessage,
+    from_lanes: EdgeMessage,
+    update: NodeUpdate,
+}
+
+/// One round's update of the lane nodes (lane-lane edges per relation, and agents).
+#[derive(Module, Debug)]
+struct LaneRound {
+    from_lanes: Vec<EdgeMessage>,
+    from_agents: EdgeMessage,
+    update: NodeUpdate,
+}
+
+impl AgentRound {
+    fn forward(&self, agents: Tensor<3>, lanes: Tensor<3>, edges: &InteractionEdges) -> Tensor<3> {
+        let messages = self.from_agents.aggregate_dense(
+            agents.clone(),
+            edges.agent_agent_pose.clone(),
+            edges.agent_agent_mask.clone(),
+        ) + self.from_lanes.aggregate(
+            lanes,
+            edges.agent_lane_index.clone(),
+            edges.agent_lane_pose.clone(),
+            edges.agent_lane_mask.clone(),
+        );
+        self.update.forward(agents, messages)
+    }
+}
+
+impl LaneRound {
+    fn forward(
+        &self,
+        agents: Tensor<3>,
+        lanes: Tensor<3>,
+        lane_input: &LaneInput,
+        edges: &InteractionEdges,
+    ) -> Tensor<3> {
+        let messages = lane_messages(&self.from_lanes, lanes.clone(), lane_input)
+            + self.from_agents.aggregate(
+                agents,
+                edges.lane_agent_index.clone(),
+                edges.lane_agent_pose.clone(),
+                edges.lane_agent_mask.clone(),
+            );
+        self.update.forward(lanes, messages)
+    }
+}
+
+/// Synchronous rounds: round r updates agents and lane nodes from both sets' round r - 1
+/// features. The last round updates agents only (updated lane nodes would reach no agent), so
+/// there is one lane round fewer and every parameter gets a gradient.
+#[derive(Module, Debug)]
+pub struct HeteroGnn {
+    agent_rounds: Vec<AgentRound>,
+    lane_rounds: Vec<LaneRound>,
+}
+
+impl HeteroGnn {
+    pub fn new(hidden: usize, rounds: usize, pose_features: usize, device: &Device) -> Self {
+        let message = || EdgeMessage::new(hidden, pose_features, device);
+        Self {
+            agent_rounds: (0..rounds)
+                .map(|_| AgentRound {
+                    from_agents: message(),
+                    from_lanes: message(),
+                    update: NodeUpdate::new(hidden, device),
+                })
+                .collect(),
+            lane_rounds: (1..rounds)
+                .map(|_| LaneRound {
+                    from_lanes: (0..LANE_RELATIONS).map(|_| message()).collect(),
+                    from_agents: message(),
+                    update: NodeUpdate::new(hidden, device),
+                })
+                .collect(),
+        }
+    }
+
+    /// Agent features `[B, N, C]` and lane features `[B, L, C]` -> fused agent features
+    /// `[B, N, C]` (the agents' input features when there are no rounds).
+    pub fn forward(
+        &self,
+        agents: Tensor<3>,
+        lanes: Tensor<3>,
+        lane_input: &LaneInput,
+        edges: &InteractionEdges,
+    ) -> Tensor<3> {
+        let (mut a, mut m) = (agents, lanes);
+        for (r, agent_round) in self.agent_rounds.iter().enumerate() {
+            let next_a = agent_round.forward(a.clone(), m.clone(), edges);
+            if let Some(lane_round) = self.lane_rounds.get(r) {
+                m = lane_round.forward(a, m, lane_input, edges);
+            }
+            a = next_a;
+        }
+        a
+    }
+}

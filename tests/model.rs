@@ -1,0 +1,387 @@
+//! The policy and value networks on real A9 scenes: viewpoint invariance, permutation
+//! equivariance, padding, gradients to every parameter, and closed-loop driving.
+
+mod common;
+
+use std::sync::Arc;
+
+use burn::module::{Module, ModuleVisitor, Param};
+use burn::prelude::*;
+use burn::tensor::TensorData;
+use rtr::map::{LaneGraph, Map, straight};
+use rtr::model::{
+    ActionMode, AgentInput, LaneInput, ModelConfig, NetworkPolicy, PolicyNetwork, ValueNetwork,
+};
+use rtr::scene::{Scene, SceneBatch};
+use rtr::sim::bench::synthetic_scene;
+use rtr::sim::{Dynamics, MapCaches, RolloutConfig, imitation_loss, logged_frames, rollout};
+
+fn device(autodiff: bool) -> Device {
+    #[allow(deprecated)]
+    let device = Device::ndarray();
+    if autodiff { device.autodiff() } else { device }
+}
+
+fn values<const D: usize>(t: Tensor<D>) -> Vec<f32> {
+    t.into_data()
+        .convert::<f32>()
+        .try_into_vec::<f32>()
+        .expect("floats")
+}
+
+/// Policy means and log sigmas, and values, for the batch's current step.
+struct Outputs {
+    mean: Vec<f32>,
+    log_std: Vec<f32>,
+    value: Vec<f32>,
+}
+
+fn outputs(policy: &PolicyNetwork, value: &ValueNetwork, batch: &SceneBatch) -> Outputs {
+    let config = policy.config();
+    let lanes = LaneInput::from_batch(batch, config);
+    let frames = logged_frames(batch, batch.history_steps);
+    let agents = AgentInput::from_frames(batch, &frames, config);
+    let dist = policy.forward(&agents, &lanes, policy.encode_lanes(&lanes));
+    let v = value.forward(&agents, &lanes, value.encode_lanes(&lanes));
+    Outputs {
+        mean: values(dist.mean),
+        log_std: values(dist.log_std),
+        value: values(v),
+    }
+}
+
+fn scene_outputs(
+    policy: &PolicyNetwork,
+    value: &ValueNetwork,
+    scene: &Scene,
+    device: &Device,
+) -> Outputs {
+    let batch = SceneBatch::from_scenes(&[scene], device).expect("batch");
+    outputs(policy, value, &batch)
+}
+
+fn networks(device: &Device, seed: u64) -> (PolicyNetwork, ValueNetwork) {
+    device.seed(seed);
+    let config = ModelConfig::small();
+    (
+        PolicyNetwork::new(&config, device),
+        ValueNetwork::new(&config, device),
+    )
+}
+
+fn test_scenes(count: usize) -> Vec<&'static Scene> {
+    common::a9_scenes()
+        .test
+        .iter()
+        .step_by(17)
+        .take(count)
+        .collect()
+}
+
+fn max_difference(a: &[f32], b: &[f32]) -> f32 {
+    assert_eq!(a.len(), b.len());
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f32::max)
+}
+
+/// Rotates by `angle` about the origin, then translates, every agent state and lane pose.
+fn move_batch(batch: &SceneBatch, angle: f32, shift: [f32; 2]) -> SceneBatch {
+    let (c, s) = (angle.cos(), angle.sin());
+    let turn = |x: Tensor<3>, y: Tensor<3>, h: Tensor<3>| {
+        let nx = x.clone().mul_scalar(c) - y.clone().mul_scalar(s);
+        let ny = x.mul_scalar(s) + y.mul_scalar(c);
+        (
+            nx.add_scalar(shift[0]),
+            ny.add_scalar(shift[1]),
+            h.add_scalar(angle),
+        )
+    };
+    let mut moved = batch.clone();
+    let [b, a, t, f] = batch.agent_states.dims();
+    let states = batch.agent_states.clone().reshape([b, a * t, f]);
+    let part = |k: usize| states.clone().narrow(2, k, 1);
+    let (x, y, h) = turn(part(0), part(1), part(2));
+    let rest = states.clone().narrow(2, 3, f - 3);
+    // Absent entries stay zero, as the batch builder leaves them.
+    let valid = batch.agent_valid.clone().reshape([b, a * t, 1]).float();
+    moved.agent_states = (Tensor::cat(vec![x, y, h], 2) * valid)
+        .cat_with(rest)
+        .reshape([b, a, t, f]);
+    let lanes = batch.lane_poses.clone();
+    let lp = |k: usize| lanes.clone().narrow(2, k, 1);
+    let (x, y, h) = turn(lp(0), lp(1), lp(2));
+    moved.lane_poses = Tensor::cat(vec![x, y, h], 2);
+    moved
+}
+
+trait CatWith {
+    fn cat_with(self, other: Tensor<3>) -> Tensor<3>;
+}
+
+impl CatWith for Tensor<3> {
+    fn cat_with(self, other: Tensor<3>) -> Tensor<3> {
+        Tensor::cat(vec![self, other], 2)
+    }
+}
+
+#[test]
+fn rotating_and_translating_the_scene_changes_no_action() {
+    let device = device(false);
+    let (policy, value) = networks(&device, 11);
+    let scenes = test_scenes(3);
+    let batch = SceneBatch::from_scenes(&scenes, &device).expect("batch");
+    let base = outputs(&policy, &value, &batch);
+    let moved = outputs(&policy, &value, &move_batch(&batch, 2.1, [-350.0, 125.0]));
+    let (dm, dv) = (
+        max_difference(&base.mean, &moved.mean),
+        max_difference(&base.value, &moved.value),
+    );
+    println!("viewpoint change: max |d mean| {dm:e}, max |d value| {dv:e}");
+    assert!(dm <= 1e-4, "action means moved by {dm}");
+    assert!(dv <= 1e-4, "values moved by {dv}");
+    assert!(
+        base.mean.iter().any(|m| m.abs() > 1e-3),
+        "the policy outputs something"
+    );
+}
+
+#[test]
+fn permuting_agents_permutes_outputs() {
+    let device = device(false);
+    let (policy, value) = networks(&device, 12);
+    let scene = test_scenes(1)[0];
+    let n = scene.agents.len();
+    assert!(n >= 4, "scene has {n} agents");
+    // order[i] = original index of the agent at position i.
+    let mut order: Vec<usize> = (0..n).rev().collect();
+    order.rotate_left(n / 3);
+    let mut permuted = scene.clone();
+    permuted.agents = order.iter().map(|&i| scene.agents[i].clone()).collect();
+
+    let (base, perm) = (
+        scene_outputs(&policy, &value, scene, &device),
+        scene_outputs(&policy, &value, &permuted, &device),
+    );
+    let mut worst = 0.0f32;
+    for (i, &j) in order.iter().enumerate() {
+        for c in 0..2 {
+            worst = worst.max((perm.mean[i * 2 + c] - base.mean[j * 2 + c]).abs());
+            worst = worst.max((perm.log_std[i * 2 + c] - base.log_std[j * 2 + c]).abs());
+        }
+        worst = worst.max((perm.value[i] - base.value[j]).abs());
+    }
+    println!("agent permutation: max output difference {worst:e}");
+    assert!(worst < 1e-5, "permuted outputs differ by {worst}");
+}
+
+/// The same lane graph with its nodes in another order (neighbour lists remapped).
+fn permuted_graph(graph: &LaneGraph, order: &[usize]) -> LaneGraph {
+    let mut position = vec![0; order.len()];
+    for (new, &old) in order.iter().enumerate() {
+        position[old] = new;
+    }
+    let remap = |lists: &Vec<Vec<usize>>| -> Vec<Vec<usize>> {
+        order
+            .iter()
+            .map(|&old| lists[old].iter().rev().map(|&j| position[j]).collect())
+            .collect()
+    };
+    LaneGraph {
+        node_length: graph.node_length,
+        nodes: order.iter().map(|&old| graph.nodes[old].clone()).collect(),
+        successors: remap(&graph.successors),
+        predecessors: remap(&graph.predecessors),
+        left: remap(&graph.left),
+        right: remap(&graph.right),
+        lane_nodes: graph.lane_nodes.clone(),
+    }
+}
+
+#[test]
+fn permuting_lane_nodes_changes_nothing() {
+    let device = device(false);
+    let (policy, value) = networks(&device, 13);
+    let scene = test_scenes(1)[0];
+    let l = scene.lane_graph.nodes.len();
+    let mut order: Vec<usize> = (0..l).rev().collect();
+    order.rotate_left(l / 3);
+    let mut permuted = scene.clone();
+    permuted.lane_graph = Arc::new(permuted_graph(&scene.lane_graph, &order));
+    let (base, perm) = (
+        scene_outputs(&policy, &value, scene, &device),
+        scene_outputs(&policy, &value, &permuted, &device),
+    );
+    let worst = max_difference(&base.mean, &perm.mean)
+        .max(max_difference(&base.log_std, &perm.log_std))
+        .max(max_difference(&base.value, &perm.value));
+    println!("lane-node permutation: max output difference {worst:e}");
+    assert!(worst < 1e-5, "lane order changed outputs by {worst}");
+}
+
+/// Bigger scenes (more agents, a longer road with more lane nodes) with the A9 window length.
+fn big_scenes(like: &Scene) -> Vec<Scene> {
+    let od = straight(4, 3.5, 900.0).expect("straight road");
+    let map = Arc::new(Map::from_opendrive(&od, "straight").expect("map"));
+    let graph = Arc::new(LaneGraph::build(&map, 10.0));
+    assert!(graph.nodes.len() > like.lane_graph.nodes.len());
+    (0..2)
+        .map(|seed| {
+            synthetic_scene(
+                &map,
+                &graph,
+                like.agents.len() + 9,
+                seed,
+                like.history_steps,
+                like.future_steps,
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn padding_changes_nothing_and_padded_agents_get_no_gradient() {
+    let device = device(true);
+    let (policy, value) = networks(&device, 14);
+    let scene = test_scenes(1)[0];
+    let big = big_scenes(scene);
+    let alone = scene_outputs(&policy, &value, scene, &device);
+    let n = scene.agents.len();
+    let mut batch = SceneBatch::from_scenes(&[&big[0], scene, &big[1]], &device).unwrap();
+    let padded = outputs(&policy, &value, &batch);
+    let width = batch.max_agents();
+    assert!(width > n);
+    let slice = |v: &[f32], per: usize| v[width * per..(width + n) * per].to_vec();
+    let worst = max_difference(&alone.mean, &slice(&padded.mean, 2))
+        .max(max_difference(&alone.log_std, &slice(&padded.log_std, 2)))
+        .max(max_difference(&alone.value, &slice(&padded.value, 1)));
+    println!("padding: max output difference {worst:e}");
+    assert!(worst < 1e-5, "padding changed outputs by {worst}");
+
+    // Junk in the padding rows changes nothing real...
+    let [b, a, t, f] = batch.agent_states.dims();
+    let mut junk = vec![0.0f32; b * a * t * f];
+    for agent in n..a {
+        for k in 0..t * f {
+            junk[((a + agent) * t) * f + k] = 1e3 * ((agent * 31 + k) as f32).sin();
+        }
+    }
+    batch.agent_states = batch.agent_states.clone()
+        + Tensor::from_data(TensorData::new(junk, [b, a, t, f]), &device);
+    let junked = outputs(&policy, &value, &batch);
+    assert_eq!(junked.mean, padded.mean, "padding rows leaked into outputs");
+    assert_eq!(
+        junked.value, padded.value,
+        "padding rows leaked into values"
+    );
+
+    // ...and a loss over every output, padding included, gives the padding rows no gradient.
+    let states = batch.agent_states.clone().require_grad();
+    batch.agent_states = states.clone();
+    let config = policy.config();
+    let lanes = LaneInput::from_batch(&batch, config);
+    let frames = logged_frames(&batch, batch.history_steps);
+    let agents = AgentInput::from_frames(&batch, &frames, config);
+    let dist = policy.forward(&agents, &lanes, policy.encode_lanes(&lanes));
+    let v = value.forward(&agents, &lanes, value.encode_lanes(&lanes));
+    let grads = (dist.mean.sum() + dist.log_std.sum() + v.sum()).backward();
+    let grad = values(states.grad(&grads).expect("states reach the outputs"));
+    let row = |agent: usize| &grad[(a + agent) * t * f..(a + agent + 1) * t * f];
+    assert!(
+        (0..n).any(|agent| row(agent).iter().any(|g| *g != 0.0)),
+        "real agents get gradient"
+    );
+    for agent in n..a {
+        assert!(
+            row(agent).iter().all(|g| *g == 0.0),
+            "padded agent {agent} got gradient"
+        );
+    }
+}
+
+/// Counts float parameters, and those without any non-zero gradient.
+struct GradientCheck<'g> {
+    grads: &'g burn::tensor::Gradients,
+    params: usize,
+    without: Vec<Vec<usize>>,
+}
+
+impl ModuleVisitor for GradientCheck<'_> {
+    fn visit_float<const D: usize>(&mut self, param: &Param<Tensor<D>>) {
+        self.params += 1;
+        let has = param
+            .val()
+            .grad(self.grads)
+            .is_some_and(|g| values(g.abs().max()).first().is_some_and(|m| *m > 0.0));
+        if !has {
+            self.without.push(param.val().dims().to_vec());
+        }
+    }
+}
+
+#[test]
+fn gradients_reach_every_parameter_through_a_closed_loop_rollout() {
+    let device = device(true);
+    let (policy, value) = networks(&device, 15);
+    let scenes = test_scenes(2);
+    let batch = SceneBatch::from_scenes(&scenes, &device).unwrap();
+    let mut driver = NetworkPolicy::new(&policy, &batch, ActionMode::Sample);
+    let config = RolloutConfig {
+        steps: Some(4),
+        early_termination: true,
+    };
+    let out = rollout(
+        &scenes,
+        &batch,
+        &Dynamics::bicycle(0.5),
+        &mut driver,
+        &mut MapCaches::default(),
+        &config,
+    )
+    .expect("rollout");
+    let loss = imitation_loss(&out, &batch, 1.0).mean();
+    assert!(values(loss.clone())[0].is_finite());
+    let grads = loss.backward();
+    let mut check = GradientCheck {
+        grads: &grads,
+        params: 0,
+        without: Vec::new(),
+    };
+    policy.visit(&mut check);
+    assert!(check.params > 50, "{} parameter tensors", check.params);
+    assert!(
+        check.without.is_empty(),
+        "policy parameters without gradient (shapes): {:?}",
+        check.without
+    );
+
+    let config = value.config();
+    let lanes = LaneInput::from_batch(&batch, config);
+    let frames = logged_frames(&batch, batch.history_steps);
+    let agents = AgentInput::from_frames(&batch, &frames, config);
+    let v = value.forward(&agents, &lanes, value.encode_lanes(&lanes));
+    let grads = v.powi_scalar(2).sum().backward();
+    let mut check = GradientCheck {
+        grads: &grads,
+        params: 0,
+        without: Vec::new(),
+    };
+    value.visit(&mut check);
+    assert!(
+        check.without.is_empty(),
+        "value parameters without gradient (shapes): {:?}",
+        check.without
+    );
+}
+
+#[test]
+fn parameter_counts_follow_the_config() {
+    let device = device(false);
+    let paper = PolicyNetwork::new(&ModelConfig::default(), &device).num_params();
+    let small = PolicyNetwork::new(&ModelConfig::small(), &device).num_params();
+    let value = ValueNetwork::new(&ModelConfig::default(), &device).num_params();
+    assert!(small * 4 < paper, "small {small} vs paper {paper}");
+    // Same architecture, a 1-wide output instead of 4 (mean and log sigma of two controls).
+    assert_eq!(paper - value, 3 * (128 + 1));
+}
