@@ -54,6 +54,10 @@ pub struct AgentInput {
 impl AgentInput {
     /// From the last `config.history_steps` of `frames` (fewer frames: the missing early ones
     /// count as absent).
+    ///
+    /// # Panics
+    /// If `frames` is empty; [`crate::sim::logged_frames`] and the rollout always hold the
+    /// current frame.
     pub fn from_frames(batch: &SceneBatch, frames: &[Frame], config: &ModelConfig) -> Self {
         let h = config.history_steps;
         let now = frames
