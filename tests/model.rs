@@ -106,24 +106,13 @@ fn move_batch(batch: &SceneBatch, angle: f32, shift: [f32; 2]) -> SceneBatch {
     let rest = states.clone().narrow(2, 3, f - 3);
     // Absent entries stay zero, as the batch builder leaves them.
     let valid = batch.agent_valid.clone().reshape([b, a * t, 1]).float();
-    moved.agent_states = (Tensor::cat(vec![x, y, h], 2) * valid)
-        .cat_with(rest)
-        .reshape([b, a, t, f]);
+    moved.agent_states =
+        Tensor::cat(vec![Tensor::cat(vec![x, y, h], 2) * valid, rest], 2).reshape([b, a, t, f]);
     let lanes = batch.lane_poses.clone();
     let lp = |k: usize| lanes.clone().narrow(2, k, 1);
     let (x, y, h) = turn(lp(0), lp(1), lp(2));
     moved.lane_poses = Tensor::cat(vec![x, y, h], 2);
     moved
-}
-
-trait CatWith {
-    fn cat_with(self, other: Tensor<3>) -> Tensor<3>;
-}
-
-impl CatWith for Tensor<3> {
-    fn cat_with(self, other: Tensor<3>) -> Tensor<3> {
-        Tensor::cat(vec![self, other], 2)
-    }
 }
 
 #[test]

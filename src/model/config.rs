@@ -8,6 +8,11 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
 
+/// Upper bounds that no sensible configuration reaches.
+const MAX_WIDTH: usize = 8192;
+const MAX_STEPS: usize = 200;
+const MAX_LAYERS: usize = 64;
+
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct ModelConfig {
@@ -116,6 +121,26 @@ impl ModelConfig {
                 return fail(field, "expected a positive integer, got 0".into());
             }
         }
+        // Catches typos (an extra zero) before they become a multi-gigabyte allocation.
+        let bounded = [
+            ("hidden", self.hidden, MAX_WIDTH),
+            ("history_steps", self.history_steps, MAX_STEPS),
+            ("history_kernel", self.history_kernel, MAX_STEPS),
+            ("history_blocks", self.history_blocks, MAX_LAYERS),
+            ("lane_layers", self.lane_layers, MAX_LAYERS),
+            ("interaction_rounds", self.interaction_rounds, MAX_LAYERS),
+        ];
+        for (field, value, max) in bounded {
+            if value > max {
+                return fail(field, format!("expected at most {max}, got {value}"));
+            }
+        }
+        if let Some(w) = self.head_hidden.iter().find(|&&w| w > MAX_WIDTH) {
+            return fail(
+                "head_hidden",
+                format!("expected widths of at most {MAX_WIDTH}, got {w}"),
+            );
+        }
         if self.history_kernel.is_multiple_of(2) {
             return fail(
                 "history_kernel",
@@ -206,6 +231,11 @@ mod tests {
             err.contains("history_kernel") && err.contains("odd"),
             "{err}"
         );
+
+        let err = ModelConfig::from_toml_str("hidden = 1280000\n", "m.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("hidden") && err.contains("at most"), "{err}");
 
         let err = ModelConfig::from_toml_str("log_std_range = [1.0, -1.0]\n", "m.toml")
             .unwrap_err()

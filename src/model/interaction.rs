@@ -92,29 +92,27 @@ impl InteractionEdges {
         let wavelengths = &config.distance_wavelengths;
         let device = agents.pose.device();
 
-        // Agent <- agent.
-        let receiver = agents
-            .pose
-            .clone()
-            .unsqueeze_dim::<4>(2)
-            .expand([b, n, n, 3]);
-        let sender = agents
-            .pose
-            .clone()
-            .unsqueeze_dim::<4>(1)
-            .expand([b, n, n, 3]);
-        let agent_agent_pose = relative_pose(receiver, sender, wavelengths);
+        // A [B, M] mask repeated along a new axis `dim` to `shape`.
+        let spread = |mask: &Tensor<2, Bool>, dim: usize, shape: [usize; 3]| {
+            mask.clone().unsqueeze_dim::<3>(dim).expand(shape)
+        };
+
+        // Agent <- agent: receiver poses along dim 2 against sender poses along dim 1.
+        let poses = |dim: usize| {
+            agents
+                .pose
+                .clone()
+                .unsqueeze_dim::<4>(dim)
+                .expand([b, n, n, 3])
+        };
+        let agent_agent_pose = relative_pose(poses(2), poses(1), wavelengths);
         let not_self = Tensor::<2, Int>::eye(n, &device)
             .equal_elem(0)
             .unsqueeze_dim::<3>(0)
             .expand([b, n, n]);
-        let pair = agents
-            .mask
-            .clone()
-            .unsqueeze_dim::<3>(2)
-            .expand([b, n, n])
-            .bool_and(agents.mask.clone().unsqueeze_dim::<3>(1).expand([b, n, n]));
-        let agent_agent_mask = pair.bool_and(not_self);
+        let agent_agent_mask = spread(&agents.mask, 2, [b, n, n])
+            .bool_and(spread(&agents.mask, 1, [b, n, n]))
+            .bool_and(not_self);
 
         // Distances agent x lane node on detached positions (choosing edges is discrete).
         let xy = |pose: &Tensor<3>| pose.clone().detach().narrow(2, 0, 2);
@@ -122,18 +120,8 @@ impl InteractionEdges {
         let diff = a_xy.unsqueeze_dim::<4>(2).expand([b, n, l, 2])
             - l_xy.unsqueeze_dim::<4>(1).expand([b, n, l, 2]);
         let distance = diff.powi_scalar(2).sum_dim(3).reshape([b, n, l]).sqrt();
-        let lane_absent = lanes
-            .mask
-            .clone()
-            .bool_not()
-            .unsqueeze_dim::<3>(1)
-            .expand([b, n, l]);
-        let agent_absent = agents
-            .mask
-            .clone()
-            .bool_not()
-            .unsqueeze_dim::<3>(2)
-            .expand([b, n, l]);
+        let lane_absent = spread(&lanes.mask.clone().bool_not(), 1, [b, n, l]);
+        let agent_absent = spread(&agents.mask.clone().bool_not(), 2, [b, n, l]);
 
         // Agent <- its closest lane nodes.
         let agent_lane = Nearest::pick(
