@@ -1,5 +1,6 @@
-//! Atomic file output: results, checkpoints and pictures are written to a temporary file in
-//! the destination's folder and renamed into place, so a crash never leaves a half file.
+//! File input and output shared by every module. Output is atomic: results, checkpoints and
+//! pictures are written to a temporary file in the destination's folder and renamed into
+//! place, so a crash never leaves a half file. TOML input errors name the line and column.
 
 use std::path::{Path, PathBuf};
 
@@ -35,6 +36,30 @@ pub fn atomic_write(path: &Path, bytes: &[u8]) -> Result<()> {
     atomic_write_with(path, |tmp| {
         std::fs::write(tmp, bytes).map_err(|e| Error::io(tmp, e))
     })
+}
+
+/// Parses a TOML document; errors name `source_name` and the 1-based line and column.
+pub fn parse_toml<T: serde::de::DeserializeOwned>(text: &str, source_name: &str) -> Result<T> {
+    toml::from_str(text).map_err(|e| {
+        let (line, column) = e
+            .span()
+            .map(|span| line_column(text, span.start))
+            .unwrap_or((0, 0));
+        Error::Parse {
+            source_name: source_name.to_string(),
+            line,
+            column,
+            message: e.message().to_string(),
+        }
+    })
+}
+
+/// 1-based line and column of byte `offset` in `text`.
+fn line_column(text: &str, offset: usize) -> (usize, usize) {
+    let before = &text[..offset.min(text.len())];
+    let line = before.matches('\n').count() + 1;
+    let column = before.chars().rev().take_while(|&c| c != '\n').count() + 1;
+    (line, column)
 }
 
 #[cfg(test)]

@@ -5,12 +5,14 @@
 
 pub mod backend;
 pub mod data;
+pub mod driver;
 pub mod error;
 pub mod geometry;
 pub mod io;
 pub mod map;
 pub mod model;
 pub mod render;
+pub mod scenario;
 pub mod scene;
 pub mod sim;
 #[cfg(test)]

@@ -40,6 +40,9 @@ pub struct RenderOptions {
     pub margin_m: f64,
     /// Track ids drawn in the highlight colour.
     pub highlight: Vec<usize>,
+    /// Draw only the part of the map within this distance (m) of this point (x, y), e.g.
+    /// the stretch of a long generated road where a scenario happens.
+    pub focus: Option<([f64; 2], f64)>,
 }
 
 impl Default for RenderOptions {
@@ -48,6 +51,7 @@ impl Default for RenderOptions {
             width_px: 2400,
             margin_m: 4.0,
             highlight: Vec::new(),
+            focus: None,
         }
     }
 }
@@ -81,8 +85,16 @@ impl View {
         let (sin, cos) = angle.sin_cos();
         let mut min = [f64::INFINITY; 2];
         let mut max = [f64::NEG_INFINITY; 2];
+        let in_focus = |p: &[f64; 2]| {
+            opts.focus.is_none_or(|(c, radius)| {
+                (p[0] - c[0]).powi(2) + (p[1] - c[1]).powi(2) <= radius * radius
+            })
+        };
         for lane in map.lanes() {
             for p in lane.left_boundary.iter().chain(&lane.right_boundary) {
+                if !in_focus(p) {
+                    continue;
+                }
                 let r = rotate(*p, cos, sin);
                 for k in 0..2 {
                     min[k] = min[k].min(r[k]);

@@ -29,6 +29,9 @@ pub enum AgentRole {
     /// Replayed from the log while the log has it (vehicles that enter after the current
     /// step, or had no history to start from).
     Replayed,
+    /// A long-tail scenario's scripted agent: simulated through the same dynamics, driven by
+    /// its script instead of the policy, and left out of losses, rewards and metrics.
+    Hero,
 }
 
 /// One vehicle of a scene, over every step of the window.
@@ -65,7 +68,7 @@ pub struct Scene {
     pub future_steps: usize,
     pub map: Arc<Map>,
     pub lane_graph: Arc<LaneGraph>,
-    /// Controlled agents first, then replayed ones.
+    /// Controlled agents first, then heroes, then replayed ones.
     pub agents: Vec<SceneAgent>,
 }
 
@@ -81,10 +84,11 @@ impl Scene {
     }
 
     pub fn controlled_count(&self) -> usize {
-        self.agents
-            .iter()
-            .filter(|a| a.role == AgentRole::Controlled)
-            .count()
+        self.count(AgentRole::Controlled)
+    }
+
+    pub fn count(&self, role: AgentRole) -> usize {
+        self.agents.iter().filter(|a| a.role == role).count()
     }
 }
 
@@ -107,6 +111,8 @@ pub struct SceneBatch {
     pub agent_mask: Tensor<2, Bool>,
     /// `[B, A]`: driven by the policy.
     pub agent_controlled: Tensor<2, Bool>,
+    /// `[B, A]`: driven by a long-tail scenario's script.
+    pub agent_hero: Tensor<2, Bool>,
     /// `[B, A, 2]`: length, width (m).
     pub agent_size: Tensor<3>,
     /// `[B, L, LANE_NODE_FEATURES]`: frame-free lane-node features.
@@ -170,6 +176,7 @@ impl SceneBatch {
         let mut valid = vec![false; b * a * t];
         let mut agent_mask = vec![false; b * a];
         let mut controlled = vec![false; b * a];
+        let mut hero = vec![false; b * a];
         let mut size = vec![0f32; b * a * 2];
         let mut lane_features = vec![0f32; b * l * LANE_NODE_FEATURES];
         let mut lane_poses = vec![0f32; b * l * 3];
@@ -180,6 +187,7 @@ impl SceneBatch {
                 let slot = bi * a + ai;
                 agent_mask[slot] = true;
                 controlled[slot] = agent.role == AgentRole::Controlled;
+                hero[slot] = agent.role == AgentRole::Hero;
                 size[slot * 2] = agent.length as f32;
                 size[slot * 2 + 1] = agent.width as f32;
                 for (ti, (st, &ok)) in agent.states.iter().zip(&agent.valid).enumerate() {
@@ -216,6 +224,7 @@ impl SceneBatch {
             agent_valid: Tensor::from_data(TensorData::new(valid, [b, a, t]), device),
             agent_mask: Tensor::from_data(TensorData::new(agent_mask, [b, a]), device),
             agent_controlled: Tensor::from_data(TensorData::new(controlled, [b, a]), device),
+            agent_hero: Tensor::from_data(TensorData::new(hero, [b, a]), device),
             agent_size: Tensor::from_data(TensorData::new(size, [b, a, 2]), device),
             lane_features: Tensor::from_data(
                 TensorData::new(lane_features, [b, l, LANE_NODE_FEATURES]),

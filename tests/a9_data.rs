@@ -142,6 +142,7 @@ fn scene_agents_follow_the_documented_roles() {
                     seen_replayed = true;
                     assert!(!(agent.valid[now] && agent.valid[now - 1]));
                 }
+                AgentRole::Hero => panic!("real logs have no scripted heroes"),
             }
             // Scene states are the log interpolated onto the dt grid.
             let track = &data.recording.tracks[agent.track_id];

@@ -47,6 +47,39 @@ enum Command {
         #[command(subcommand)]
         command: ModelCommand,
     },
+    /// Long-tail scenarios: logical families, concrete sets.
+    Scenarios {
+        #[command(subcommand)]
+        command: ScenariosCommand,
+    },
+}
+
+#[derive(Subcommand)]
+enum ScenariosCommand {
+    /// Draw the default train / eval / OOD sets (167 / 166 / 84) from the family files and
+    /// write one JSON file per concrete scenario to OUT/train, OUT/eval, OUT/ood.
+    Generate {
+        #[arg(long)]
+        out: PathBuf,
+        #[arg(long, default_value_t = rtr::scenario::DEFAULT_SEED)]
+        seed: u64,
+        /// Folder of family files (*.toml, searched recursively); default: the shipped ones.
+        #[arg(long)]
+        families: Option<PathBuf>,
+        /// Concrete scenarios from the training families (split alternately into train/eval).
+        #[arg(long, default_value_t = 333)]
+        in_distribution: usize,
+        /// Concrete scenarios from the held-out families.
+        #[arg(long, default_value_t = 84)]
+        ood: usize,
+        #[command(flatten)]
+        data: DataArgs,
+    },
+    /// List the families with their set and description.
+    List {
+        #[arg(long)]
+        families: Option<PathBuf>,
+    },
 }
 
 #[derive(Subcommand)]
@@ -189,6 +222,10 @@ enum Split {
 struct RenderArgs {
     #[command(flatten)]
     data: DataArgs,
+    /// A concrete long-tail scenario (JSON from `rtr scenarios generate`) instead of a
+    /// nominal scene; drawn with its reference run as the future, heroes in red.
+    #[arg(long, conflicts_with_all = ["scene", "index"])]
+    scenario: Option<PathBuf>,
     #[arg(long, value_enum, default_value = "test")]
     split: Split,
     /// Scene id (as printed by `rtr data summary`), e.g. a9-test-t0450.0.
@@ -259,6 +296,100 @@ fn run(cli: Cli) -> Result<()> {
                 },
         } => model_info(config, small, json),
         Command::Bench { command } => bench(command),
+        Command::Scenarios { command } => scenarios(command),
+    }
+}
+
+fn render_scenario(path: &std::path::Path, args: &RenderArgs) -> Result<()> {
+    let scenario = rtr::scenario::ConcreteScenario::from_json_file(path)?;
+    let scene = rtr::scenario::scene_with_reference_future(&scenario)?;
+    // The stretch where it happens: around the target, a little ahead of it.
+    let target = scene.agents[scenario.target]
+        .footprint(scene.current_step())
+        .map_or([0.0, 0.0], |b| {
+            let d = [b.heading.cos(), b.heading.sin()];
+            [b.center[0] + 80.0 * d[0], b.center[1] + 80.0 * d[1]]
+        });
+    let opts = RenderOptions {
+        width_px: args.width,
+        highlight: scenario.heroes.iter().map(|h| h.agent).collect(),
+        focus: Some((target, 200.0)),
+        ..Default::default()
+    };
+    for target in &targets(&args.out) {
+        render_scene(&scene, target, &opts)?;
+        println!("wrote {}", target.display());
+    }
+    println!(
+        "scenario {} ({}): {} agents; heroes red, policy-driven agents blue; solid line = history, \
+         faded line and dots = the IDM reference run",
+        scenario.id(),
+        scenario.description,
+        scenario.agents.len()
+    );
+    Ok(())
+}
+
+fn scenarios(command: ScenariosCommand) -> Result<()> {
+    use rtr::scenario::{
+        GenerateConfig, ScenarioSet, builtin_families, generate_sets, load_families,
+    };
+    match command {
+        ScenariosCommand::List { families } => {
+            let families = load_families(&families.unwrap_or_else(builtin_families))?;
+            for f in &families {
+                println!(
+                    "{:<28} {:<5} {}",
+                    f.name,
+                    format!("{:?}", f.set).to_lowercase(),
+                    f.description
+                );
+            }
+            Ok(())
+        }
+        ScenariosCommand::Generate {
+            out,
+            seed,
+            families,
+            in_distribution,
+            ood,
+            data,
+        } => {
+            let start = std::time::Instant::now();
+            let families = load_families(&families.unwrap_or_else(builtin_families))?;
+            let dataset = data.load()?;
+            let stats =
+                rtr::data::TrafficStatistics::from_recording(&dataset.recording, &dataset.map, 1.0);
+            let config = GenerateConfig {
+                seed,
+                in_distribution,
+                ood,
+                ..Default::default()
+            };
+            let sets = generate_sets(&families, &stats, &config)?;
+            let written = sets.write(&out)?;
+            for set in ScenarioSet::ALL {
+                let list = sets.set(set);
+                let collided = list
+                    .iter()
+                    .filter(|s| !s.reference.collided_agents.is_empty())
+                    .count();
+                let agents: usize = list.iter().map(|s| s.agents.len()).sum();
+                println!(
+                    "{:<5} {:>4} scenarios, {:>5} agents; IDM reference: a collision in {collided} ({:.1} %)",
+                    set.name(),
+                    list.len(),
+                    agents,
+                    100.0 * collided as f64 / list.len().max(1) as f64
+                );
+            }
+            println!(
+                "wrote {written} scenarios to {} in {:.1} s (seed {seed})",
+                out.display(),
+                start.elapsed().as_secs_f64()
+            );
+            Ok(())
+        }
     }
 }
 
@@ -379,6 +510,9 @@ fn targets(out: &std::path::Path) -> Vec<PathBuf> {
 }
 
 fn render(args: RenderArgs) -> Result<()> {
+    if let Some(path) = &args.scenario {
+        return render_scenario(path, &args);
+    }
     let dataset = args.data.load()?;
     let split = dataset.scenes(&SceneConfig::default())?;
     let scenes = match args.split {

@@ -6,6 +6,7 @@ pub mod automatum;
 pub mod logged_infractions;
 pub mod summary;
 pub mod track;
+pub mod traffic;
 pub mod windows;
 
 pub use a9::A9Dataset;
@@ -13,4 +14,5 @@ pub use automatum::{A9_DYNAMIC_SHA256, A9_STATIC_SHA256, Recording, load_recordi
 pub use logged_infractions::{LoggedInfractions, logged_infractions};
 pub use summary::{DataSummary, summarize};
 pub use track::{AgentState, Track, TrackSample, VehicleClass};
+pub use traffic::{LaneTraffic, TrafficStatistics, VehicleSample, rank_from_right};
 pub use windows::{SceneConfig, SceneSplit, build_scenes};

@@ -7,6 +7,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
+use crate::io::parse_toml;
 
 /// Upper bounds that no sensible configuration reaches.
 const MAX_WIDTH: usize = 8192;
@@ -84,18 +85,7 @@ impl ModelConfig {
 
     /// Parses TOML text; `source_name` names it in errors.
     pub fn from_toml_str(text: &str, source_name: &str) -> Result<Self> {
-        let config: Self = toml::from_str(text).map_err(|e| {
-            let (line, column) = e
-                .span()
-                .map(|span| line_column(text, span.start))
-                .unwrap_or((0, 0));
-            Error::Parse {
-                source_name: source_name.to_string(),
-                line,
-                column,
-                message: e.message().to_string(),
-            }
-        })?;
+        let config: Self = parse_toml(text, source_name)?;
         config.validate(source_name)?;
         Ok(config)
     }
@@ -188,14 +178,6 @@ impl ModelConfig {
         }
         Ok(())
     }
-}
-
-/// 1-based line and column of byte `offset` in `text`.
-fn line_column(text: &str, offset: usize) -> (usize, usize) {
-    let before = &text[..offset.min(text.len())];
-    let line = before.matches('\n').count() + 1;
-    let column = before.chars().rev().take_while(|&c| c != '\n').count() + 1;
-    (line, column)
 }
 
 #[cfg(test)]

@@ -1,6 +1,7 @@
 //! Closed-loop rollout: from a batch's current step, a policy drives the controlled agents
-//! through the dynamics for T steps, seeing the simulated (not the logged) history; replayed
-//! agents follow the log while it has them; infractions are flagged per agent and step.
+//! (and a script the heroes of long-tail scenarios) through the dynamics for T steps, seeing
+//! the simulated (not the logged) history; replayed agents follow the log while it has them;
+//! infractions are flagged per agent and step.
 //!
 //! Early termination (paper appendix): an agent that collides or goes off-road gets reward -1
 //! on that step and is removed from the simulation afterwards. An agent whose box centre
@@ -62,8 +63,8 @@ pub fn coast(obs: &Observation) -> Controls {
     }
 }
 
-/// Drives the agents in `mask` with `script` (e.g. long-tail hero agents) and all others with
-/// `policy`, both through the same dynamics.
+/// Drives the agents in `mask` with `script` (long-tail heroes: `mask` = the batch's
+/// `agent_hero`) and all others with `policy`, both through the same dynamics.
 pub struct Scripted<'p, 's> {
     pub policy: &'p mut dyn Policy,
     pub script: &'s mut dyn Policy,
@@ -109,7 +110,8 @@ pub struct Rollout {
     /// `[B, N, T + 1]`: controlled by the policy and still simulated (not terminated, not
     /// exited); the imitation loss is taken where this and the log are both valid.
     pub simulated: Tensor<3, Bool>,
-    /// `[B, N, T]`: infraction flags of the transition into step t + 1, controlled agents.
+    /// `[B, N, T]`: infraction flags of the transition into step t + 1, controlled agents
+    /// only (a hero's infraction ends its run but is not the policy's).
     pub collision: Tensor<3, Bool>,
     pub offroad: Tensor<3, Bool>,
     /// `[B, N, T]`: -1 on an infraction, else 0.
@@ -211,6 +213,12 @@ pub fn rollout_from(
     let wheelbase = length.clone().mul_scalar(WHEELBASE_RATIO).clamp_min(1.0);
     let (length_v, width_v) = (to_f32(&length), to_f32(&width));
     let controlled = to_bool(&batch.agent_controlled);
+    // Simulated through the dynamics: the policy's agents and the scripted heroes.
+    let driven: Vec<bool> = controlled
+        .iter()
+        .zip(to_bool(&batch.agent_hero))
+        .map(|(c, h)| *c || h)
+        .collect();
     let log_valid: Vec<bool> = batch
         .agent_valid
         .to_data()
@@ -247,12 +255,8 @@ pub fn rollout_from(
     };
     let mut state = dynamics.init_aux(start, &zero_controls);
     let mut present = to_bool(&valid_at(h));
-    // Controlled agents still driven by the policy.
-    let mut alive: Vec<bool> = present
-        .iter()
-        .zip(&controlled)
-        .map(|(p, c)| *p && *c)
-        .collect();
+    // Driven agents still simulated.
+    let mut alive: Vec<bool> = present.iter().zip(&driven).map(|(p, c)| *p && *c).collect();
 
     let mut poses = vec![pose_of(&state)];
     let mut present_hist = vec![present.clone()];
@@ -274,7 +278,7 @@ pub fn rollout_from(
         // controlled agents stay frozen where they stopped.
         let t_next = h + k + 1;
         let replay: Vec<bool> = (0..b * n)
-            .map(|i| !controlled[i] && t_next < t_total && log_valid[i * t_total + t_next])
+            .map(|i| !driven[i] && t_next < t_total && log_valid[i * t_total + t_next])
             .collect();
         // Tensor selects only when some agent needs them (the common case has none).
         let frozen = if replay.iter().any(|&r| r) {
@@ -329,9 +333,9 @@ pub fn rollout_from(
                 present[i] = false;
                 continue;
             }
-            collision[i] = flags.collision[i];
-            offroad[i] = flags.offroad[i];
-            if config.early_termination && (collision[i] || offroad[i]) {
+            collision[i] = flags.collision[i] && controlled[i];
+            offroad[i] = flags.offroad[i] && controlled[i];
+            if config.early_termination && (flags.collision[i] || flags.offroad[i]) {
                 // Present at the infraction step, removed from the next one.
                 alive[i] = false;
             }

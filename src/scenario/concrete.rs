@@ -1,0 +1,270 @@
+//! Concrete scenarios: one draw of a logical scenario, stored as JSON (one file each) with
+//! everything needed to simulate it again: the drawn parameters, the map parameters, every
+//! vehicle's history, the heroes' concrete scripts, and how the reference driver fared.
+//! There is no logged future: long-tail scenarios have no human demonstration, so they give
+//! reinforcement signal only (imitation masks find no valid future step).
+
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::sync::Arc;
+
+use serde::{Deserialize, Serialize};
+
+use super::hero::{HeroAssignment, HeroScripts, PhaseProgress};
+use crate::data::a9::LANE_NODE_LENGTH;
+use crate::data::{AgentState, VehicleClass};
+use crate::error::{Error, Result};
+use crate::io::atomic_write;
+use crate::map::{LaneGraph, Map, ProceduralMap};
+use crate::scene::{AgentRole, Scene, SceneAgent};
+
+/// The set a concrete scenario belongs to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ScenarioSet {
+    Train,
+    Eval,
+    Ood,
+}
+
+impl ScenarioSet {
+    pub const ALL: [ScenarioSet; 3] = [ScenarioSet::Train, ScenarioSet::Eval, ScenarioSet::Ood];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            ScenarioSet::Train => "train",
+            ScenarioSet::Eval => "eval",
+            ScenarioSet::Ood => "ood",
+        }
+    }
+}
+
+/// One vehicle: role, size and its states over the history and the current step
+/// (`[x, y, heading, speed]` of the box centre; `null` before it enters the road).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScenarioAgent {
+    pub role: AgentRole,
+    pub class: VehicleClass,
+    pub length: f64,
+    pub width: f64,
+    pub states: Vec<Option<[f64; 4]>>,
+}
+
+/// A hero's concrete script.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScenarioHero {
+    pub agent: usize,
+    pub target: usize,
+    pub phases: Vec<super::behaviour::Phase<f64>>,
+}
+
+/// The validation run: heroes scripted, every other vehicle driven by the IDM reference
+/// driver, no early termination.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ReferenceRun {
+    /// Draws needed until one passed validation.
+    pub attempts: usize,
+    /// Per hero, per phase: when it fired and completed.
+    pub phases: Vec<Vec<PhaseProgress>>,
+    /// Non-hero agents that collided with anything.
+    pub collided_agents: Vec<usize>,
+    /// Non-hero agents that left the road surface.
+    pub offroad_agents: Vec<usize>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ConcreteScenario {
+    pub family: String,
+    pub description: String,
+    pub set: ScenarioSet,
+    /// Position within its set's files of this family.
+    pub index: usize,
+    pub seed: u64,
+    /// Every drawn value of the logical scenario's ranges, by name.
+    pub parameters: BTreeMap<String, f64>,
+    pub map: ProceduralMap,
+    pub dt: f64,
+    pub history_steps: usize,
+    pub future_steps: usize,
+    /// The agent the heroes act on.
+    pub target: usize,
+    pub agents: Vec<ScenarioAgent>,
+    pub heroes: Vec<ScenarioHero>,
+    pub reference: ReferenceRun,
+}
+
+impl ConcreteScenario {
+    /// `family-set-index`, e.g. `cut_in_left-eval-003`.
+    pub fn id(&self) -> String {
+        format!("{}-{}-{:03}", self.family, self.set.name(), self.index)
+    }
+
+    pub fn to_json(&self) -> Result<String> {
+        serde_json::to_string_pretty(self)
+            .map(|mut s| {
+                s.push('\n');
+                s
+            })
+            .map_err(|e| {
+                Error::InvalidArgument(format!("cannot encode scenario {}: {e}", self.id()))
+            })
+    }
+
+    pub fn write(&self, path: &Path) -> Result<()> {
+        atomic_write(path, self.to_json()?.as_bytes())
+    }
+
+    pub fn from_json_file(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let scenario: Self = serde_json::from_str(&text).map_err(|e| Error::Parse {
+            source_name: path.display().to_string(),
+            line: e.line(),
+            column: e.column(),
+            message: e.to_string(),
+        })?;
+        scenario.check(&path.display().to_string())?;
+        Ok(scenario)
+    }
+
+    /// Structural checks of a loaded file (indices in range, history lengths).
+    fn check(&self, source: &str) -> Result<()> {
+        let steps = self.history_steps + 1;
+        let n = self.agents.len();
+        for (i, a) in self.agents.iter().enumerate() {
+            if a.states.len() != steps {
+                return Err(Error::invalid(
+                    source,
+                    format!("agents[{i}].states"),
+                    format!(
+                        "has {} entries, expected history_steps + 1 = {steps}",
+                        a.states.len()
+                    ),
+                ));
+            }
+            if a.states[steps - 1].is_none() {
+                return Err(Error::invalid(
+                    source,
+                    format!("agents[{i}].states"),
+                    "the current (last) state is null: every agent must be on the road now",
+                ));
+            }
+        }
+        if self.target >= n {
+            return Err(Error::invalid(
+                source,
+                "target",
+                format!("{} but there are {n} agents", self.target),
+            ));
+        }
+        for (h, hero) in self.heroes.iter().enumerate() {
+            if hero.agent >= n || hero.target >= n {
+                return Err(Error::invalid(
+                    source,
+                    format!("heroes[{h}]"),
+                    format!(
+                        "agent {} / target {} but there are {n} agents",
+                        hero.agent, hero.target
+                    ),
+                ));
+            }
+        }
+        if !(self.dt > 0.0 && self.dt.is_finite()) {
+            return Err(Error::invalid(
+                source,
+                "dt",
+                format!("{}: expected a positive step", self.dt),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Builds the map and lane graph.
+    pub fn build_map(&self) -> Result<(Arc<Map>, Arc<LaneGraph>)> {
+        let map = Arc::new(Map::from_opendrive(&self.map.build()?, &self.id())?);
+        let graph = Arc::new(LaneGraph::build(&map, LANE_NODE_LENGTH));
+        Ok((map, graph))
+    }
+
+    /// The scenario as a simulator scene (future steps carry no log).
+    pub fn to_scene(&self) -> Result<Scene> {
+        let (map, lane_graph) = self.build_map()?;
+        Ok(self.scene_on(map, lane_graph))
+    }
+
+    /// As [`to_scene`](Self::to_scene) on an already built map.
+    pub fn scene_on(&self, map: Arc<Map>, lane_graph: Arc<LaneGraph>) -> Scene {
+        let steps = self.history_steps + 1 + self.future_steps;
+        let agents = self
+            .agents
+            .iter()
+            .enumerate()
+            .map(|(i, a)| {
+                let mut states = vec![AgentState::default(); steps];
+                let mut valid = vec![false; steps];
+                for (k, s) in a.states.iter().enumerate() {
+                    if let Some([x, y, heading, speed]) = *s {
+                        states[k] = AgentState {
+                            x,
+                            y,
+                            heading,
+                            speed,
+                            accel: 0.0,
+                        };
+                        valid[k] = true;
+                    }
+                }
+                SceneAgent {
+                    track_id: i,
+                    class: a.class.clone(),
+                    length: a.length,
+                    width: a.width,
+                    role: a.role,
+                    states,
+                    valid,
+                }
+            })
+            .collect();
+        Scene {
+            id: self.id(),
+            t0: 0.0,
+            dt: self.dt,
+            history_steps: self.history_steps,
+            future_steps: self.future_steps,
+            map,
+            lane_graph,
+            agents,
+        }
+    }
+
+    /// The heroes as assignments for scene `b` of a batch.
+    pub fn hero_assignments(&self, b: usize) -> Vec<HeroAssignment> {
+        self.heroes
+            .iter()
+            .map(|h| HeroAssignment {
+                scene: b,
+                agent: h.agent,
+                target: h.target,
+                phases: h.phases.clone(),
+            })
+            .collect()
+    }
+}
+
+/// The hero script policy for a batch of scenarios, `scenes[b]` built from `scenarios[b]`.
+pub fn hero_scripts(scenarios: &[&ConcreteScenario], scenes: &[&Scene]) -> HeroScripts {
+    let assignments = scenarios
+        .iter()
+        .enumerate()
+        .flat_map(|(b, s)| s.hero_assignments(b))
+        .collect();
+    let dt = scenarios.first().map_or(0.5, |s| s.dt);
+    HeroScripts::new(
+        scenes.iter().map(|s| s.map.clone()).collect(),
+        assignments,
+        dt,
+    )
+}

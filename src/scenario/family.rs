@@ -1,0 +1,291 @@
+//! Logical scenarios (PEGASUS): a family of concrete scenarios given as data. A TOML file
+//! names a procedural map template, the target (the vehicle the heroes act on, driven by the
+//! policy under test), background traffic drawn from the real A9 statistics, and the heroes:
+//! where they start relative to the target and the phases of their script. Every number may
+//! be a range `[low, high]`; a concrete scenario draws one value from each.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use super::behaviour::Phase;
+use super::placement::LaneRef;
+use super::range::Range;
+use crate::error::{Error, Result};
+use crate::io::parse_toml;
+use crate::map::ProceduralMap;
+
+/// Which scenario sets a family feeds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FamilySet {
+    /// In-distribution: its concrete scenarios are split into the train and eval sets.
+    Train,
+    /// Held out: only the out-of-distribution set.
+    Ood,
+}
+
+/// A procedural map preset with some of its parameters replaced by ranges.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MapTemplate {
+    /// A [`ProceduralMap::preset`] name.
+    pub preset: String,
+    /// Preset fields to override (`lanes`, `length`, `curvature`, `merge_s`, ...), plus
+    /// `median_width` for an A9-like divided road.
+    #[serde(flatten)]
+    pub params: BTreeMap<String, Range>,
+}
+
+/// The vehicle the heroes act on.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TargetSpec {
+    pub lane: LaneRef,
+    /// Main-road station (m).
+    pub station: Range,
+    /// Speed (m/s); when absent, drawn from the A9 speeds of the lane within `speed_band`.
+    #[serde(default)]
+    pub speed: Option<Range>,
+    /// Quantile band of the A9 lane speeds (0 = slowest) the target's speed is drawn from.
+    #[serde(default = "default_band")]
+    pub speed_band: Range,
+}
+
+fn default_band() -> Range {
+    Range::Uniform(0.1, 0.9)
+}
+
+fn default_behind() -> f64 {
+    120.0
+}
+
+fn default_ahead() -> f64 {
+    250.0
+}
+
+/// Background traffic around the target, from the A9 statistics of each lane rank.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BackgroundSpec {
+    /// Quantile band of the A9 time headways (low = dense traffic).
+    #[serde(default = "default_band")]
+    pub headway_band: Range,
+    /// Quantile band of the A9 lane speeds.
+    #[serde(default = "default_band")]
+    pub speed_band: Range,
+    /// Traffic is placed from this far behind the target...
+    #[serde(default = "default_behind")]
+    pub behind_m: f64,
+    /// ...to this far ahead of it (m).
+    #[serde(default = "default_ahead")]
+    pub ahead_m: f64,
+    /// Main lanes to fill (1 = leftmost); all when absent.
+    #[serde(default)]
+    pub lanes: Option<Vec<usize>>,
+}
+
+impl Default for BackgroundSpec {
+    fn default() -> Self {
+        Self {
+            headway_band: default_band(),
+            speed_band: default_band(),
+            behind_m: default_behind(),
+            ahead_m: default_ahead(),
+            lanes: None,
+        }
+    }
+}
+
+/// Vehicle type of a hero; its size is drawn from the A9 vehicles of that class.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum HeroVehicle {
+    #[default]
+    Car,
+    Truck,
+}
+
+/// A scripted vehicle.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HeroSpec {
+    /// An absolute lane...
+    #[serde(default)]
+    pub lane: Option<LaneRef>,
+    /// ...or main lanes relative to the target's (-1 = one to the left).
+    #[serde(default)]
+    pub lane_offset: Option<i32>,
+    /// Station relative to the target's (m, positive = ahead).
+    pub station_offset: Range,
+    /// Absolute speed (m/s)...
+    #[serde(default)]
+    pub speed: Option<Range>,
+    /// ...or relative to the target's.
+    #[serde(default)]
+    pub speed_offset: Option<Range>,
+    #[serde(default)]
+    pub vehicle: HeroVehicle,
+    pub phases: Vec<Phase<Range>>,
+}
+
+/// One logical scenario.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LogicalScenario {
+    /// snake_case identifier, also the file name.
+    pub name: String,
+    pub description: String,
+    pub set: FamilySet,
+    /// Simulated time after the current step (s).
+    #[serde(default = "default_duration")]
+    pub duration_s: f64,
+    pub map: MapTemplate,
+    pub target: TargetSpec,
+    #[serde(default)]
+    pub background: BackgroundSpec,
+    pub heroes: Vec<HeroSpec>,
+}
+
+fn default_duration() -> f64 {
+    10.0
+}
+
+impl LogicalScenario {
+    pub fn from_toml_str(text: &str, source_name: &str) -> Result<Self> {
+        let family: Self = parse_toml(text, source_name)?;
+        family
+            .validate()
+            .map_err(|(place, message)| Error::invalid(source_name, place, message))?;
+        Ok(family)
+    }
+
+    pub fn from_toml_file(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        Self::from_toml_str(&text, &path.display().to_string())
+    }
+
+    /// Checks what can be checked without drawing: names, ranges, the map template's keys.
+    /// Errors are (field, message).
+    pub fn validate(&self) -> std::result::Result<(), (String, String)> {
+        let field = |f: &str| format!("field `{f}`");
+        if self.name.is_empty()
+            || !self
+                .name
+                .chars()
+                .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '_')
+        {
+            return Err((
+                field("name"),
+                format!("`{}`: expected a snake_case identifier", self.name),
+            ));
+        }
+        if !(1.0..=60.0).contains(&self.duration_s) {
+            return Err((
+                field("duration_s"),
+                format!("{} s: expected 1 to 60 s", self.duration_s),
+            ));
+        }
+        let preset = ProceduralMap::preset(&self.map.preset)
+            .map_err(|e| (field("map.preset"), e.to_string()))?;
+        let known = serde_json::to_value(&preset)
+            .ok()
+            .and_then(|v| v.as_object().cloned())
+            .unwrap_or_default();
+        for (key, range) in &self.map.params {
+            let numeric = known.get(key).is_some_and(|v| v.is_number());
+            let layout = key == "median_width" && known.contains_key("layout");
+            if !(numeric || layout) {
+                let mut keys: Vec<&str> = known
+                    .iter()
+                    .filter(|(_, v)| v.is_number())
+                    .map(|(k, _)| k.as_str())
+                    .collect();
+                if known.contains_key("layout") {
+                    keys.push("median_width");
+                }
+                return Err((
+                    field(&format!("map.{key}")),
+                    format!(
+                        "preset `{}` has no parameter `{key}`; expected one of {}",
+                        self.map.preset,
+                        keys.join(", ")
+                    ),
+                ));
+            }
+            range
+                .check(&format!("map.{key}"), 0.0, 10_000.0)
+                .map_err(|m| (field(&format!("map.{key}")), m))?;
+        }
+        let t = &self.target;
+        t.station
+            .check("target.station", 0.0, 10_000.0)
+            .map_err(|m| (field("target.station"), m))?;
+        if let Some(speed) = &t.speed {
+            speed
+                .check("target.speed", 0.0, 60.0)
+                .map_err(|m| (field("target.speed"), m))?;
+        }
+        t.speed_band
+            .check("target.speed_band", 0.0, 1.0)
+            .map_err(|m| (field("target.speed_band"), m))?;
+        let bg = &self.background;
+        for (name, band) in [
+            ("background.headway_band", &bg.headway_band),
+            ("background.speed_band", &bg.speed_band),
+        ] {
+            band.check(name, 0.0, 1.0).map_err(|m| (field(name), m))?;
+        }
+        for (name, v) in [
+            ("background.behind_m", bg.behind_m),
+            ("background.ahead_m", bg.ahead_m),
+        ] {
+            if !(0.0..=2000.0).contains(&v) {
+                return Err((field(name), format!("{v} m: expected 0 to 2000 m")));
+            }
+        }
+        if self.heroes.is_empty() {
+            return Err((
+                field("heroes"),
+                "a long-tail scenario needs at least one hero ([[heroes]])".into(),
+            ));
+        }
+        for (h, hero) in self.heroes.iter().enumerate() {
+            let name = format!("heroes[{h}]");
+            if hero.lane.is_some() == hero.lane_offset.is_some() {
+                return Err((
+                    field(&name),
+                    "give exactly one of `lane` and `lane_offset`".into(),
+                ));
+            }
+            if hero.speed.is_some() == hero.speed_offset.is_some() {
+                return Err((
+                    field(&name),
+                    "give exactly one of `speed` and `speed_offset`".into(),
+                ));
+            }
+            hero.station_offset
+                .check(&format!("{name}.station_offset"), -1000.0, 1000.0)
+                .map_err(|m| (field(&name), m))?;
+            if let Some(s) = &hero.speed {
+                s.check(&format!("{name}.speed"), 0.0, 60.0)
+                    .map_err(|m| (field(&name), m))?;
+            }
+            if let Some(s) = &hero.speed_offset {
+                s.check(&format!("{name}.speed_offset"), -60.0, 60.0)
+                    .map_err(|m| (field(&name), m))?;
+            }
+            if hero.phases.is_empty() {
+                return Err((
+                    field(&format!("{name}.phases")),
+                    "a hero needs at least one phase ([[heroes.phases]])".into(),
+                ));
+            }
+            for (p, phase) in hero.phases.iter().enumerate() {
+                let pname = format!("{name}.phases[{p}]");
+                phase.check(&pname).map_err(|m| (field(&pname), m))?;
+            }
+        }
+        Ok(())
+    }
+}

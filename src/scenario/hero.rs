@@ -1,0 +1,436 @@
+//! Hero scripts at run time: a [`Policy`] that drives the heroes of a batch of long-tail
+//! scenarios through their phases, reacting to the simulated state of their targets. Each
+//! hero tracks a lane (pure pursuit) and a speed profile, so every manoeuvre goes through the
+//! same bicycle dynamics and limits as the learned agents and is physically feasible.
+
+use std::sync::Arc;
+
+use super::behaviour::{Action, Direction, Phase, Trigger};
+use crate::driver::{
+    AgentView, ControlCommand, IdmParams, LanePath, Snapshot, find_leader, idm_accel,
+    locate_on_lane, look_ahead, steer_along, to_controls,
+};
+use crate::map::Map;
+use crate::sim::{ActionLimits, Controls, Observation, Policy};
+
+/// How far ahead a hero's lane path reaches (m).
+const PATH_AHEAD_M: f64 = 150.0;
+/// A lane change is complete within this distance of the new lane's centre (m).
+const LANE_CHANGE_DONE_M: f64 = 0.3;
+/// A speed target counts as reached within this margin (m/s).
+const SPEED_REACHED: f64 = 0.5;
+
+/// Where one hero is and what it should do.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct HeroAssignment {
+    /// Index of the scene in the batch.
+    pub scene: usize,
+    /// Agent index of the hero and of its target within the scene.
+    pub agent: usize,
+    pub target: usize,
+    pub phases: Vec<Phase<f64>>,
+}
+
+/// What became of one phase during a rollout (steps count from the scene's current step).
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct PhaseProgress {
+    pub fired_step: Option<usize>,
+    pub done_step: Option<usize>,
+    /// Why the action could not be carried out (e.g. no lane on that side).
+    pub failed: Option<String>,
+}
+
+#[derive(Debug, Clone)]
+enum Lateral {
+    Keep,
+    Change {
+        to: usize,
+        lateral_speed: f64,
+        phase: usize,
+    },
+    Swerve {
+        sign: f64,
+        amplitude: f64,
+        period: f64,
+        since: f64,
+        phase: usize,
+    },
+}
+
+#[derive(Debug, Clone)]
+enum Longitudinal {
+    Cruise {
+        speed: f64,
+    },
+    Brake {
+        decel: f64,
+        jerk: f64,
+        min_speed: f64,
+        since: f64,
+        phase: usize,
+    },
+    Accelerate {
+        accel: f64,
+        max_speed: f64,
+    },
+    Follow {
+        time_gap: f64,
+        max_speed: f64,
+    },
+}
+
+#[derive(Debug, Clone)]
+struct HeroState {
+    assignment: HeroAssignment,
+    next_phase: usize,
+    lane: Option<usize>,
+    last_xy: Option<[f64; 2]>,
+    travelled: f64,
+    lateral: Lateral,
+    longitudinal: Option<Longitudinal>,
+    progress: Vec<PhaseProgress>,
+}
+
+/// The hero script policy of a batch.
+pub struct HeroScripts {
+    maps: Vec<Arc<Map>>,
+    heroes: Vec<HeroState>,
+    pub limits: ActionLimits,
+    pub idm: IdmParams,
+    dt: f64,
+}
+
+/// Longitudinal relation of a hero to its target.
+struct Relation {
+    /// Target position along the hero's heading (m, positive = target ahead).
+    along: f64,
+    /// Bumper-to-bumper gap (m); negative when side by side.
+    gap: f64,
+    /// Rate at which the gap shrinks (m/s).
+    closing: f64,
+}
+
+fn relation(hero: &AgentView, target: &AgentView) -> Relation {
+    let d = hero.direction();
+    let along = (target.x - hero.x) * d[0] + (target.y - hero.y) * d[1];
+    let gap = along.abs() - 0.5 * (hero.length + target.length);
+    let target_speed = target.speed * (target.heading - hero.heading).cos();
+    let closing = if along > 0.0 {
+        hero.speed - target_speed
+    } else {
+        target_speed - hero.speed
+    };
+    Relation {
+        along,
+        gap,
+        closing,
+    }
+}
+
+impl HeroScripts {
+    /// `maps[b]` is scene b's map; `dt` the simulation step (s).
+    pub fn new(maps: Vec<Arc<Map>>, assignments: Vec<HeroAssignment>, dt: f64) -> Self {
+        let heroes = assignments
+            .into_iter()
+            .map(|a| HeroState {
+                progress: vec![PhaseProgress::default(); a.phases.len()],
+                assignment: a,
+                next_phase: 0,
+                lane: None,
+                last_xy: None,
+                travelled: 0.0,
+                lateral: Lateral::Keep,
+                longitudinal: None,
+            })
+            .collect();
+        Self {
+            maps,
+            heroes,
+            limits: ActionLimits::default(),
+            idm: IdmParams::default(),
+            dt,
+        }
+    }
+
+    /// Per hero (in assignment order), what happened to each phase so far.
+    pub fn progress(&self) -> Vec<Vec<PhaseProgress>> {
+        self.heroes.iter().map(|h| h.progress.clone()).collect()
+    }
+
+    /// Whether `trigger` fires now; `since` is when the previous phase completed (s).
+    fn fires(
+        trigger: &Trigger<f64>,
+        hero: &HeroState,
+        me: &AgentView,
+        target: &AgentView,
+        time: f64,
+        since: f64,
+    ) -> bool {
+        let rel = || relation(me, target);
+        match *trigger {
+            Trigger::Start => true,
+            Trigger::After { seconds } => time - since >= seconds - 1e-9,
+            Trigger::Travelled { metres } => hero.travelled >= metres,
+            _ if !target.present => false,
+            Trigger::AheadGapBelow { metres } => {
+                let r = rel();
+                r.along < 0.0 && r.gap < metres
+            }
+            Trigger::AheadGapAbove { metres } => {
+                let r = rel();
+                r.along < 0.0 && r.gap > metres
+            }
+            Trigger::BehindGapBelow { metres } => {
+                let r = rel();
+                r.along > 0.0 && r.gap < metres
+            }
+            Trigger::TtcBelow { seconds } => {
+                let r = rel();
+                r.gap > 0.0 && r.closing > 0.0 && r.gap / r.closing < seconds
+            }
+        }
+    }
+
+    /// One hero's command at `step`.
+    fn command(&mut self, k: usize, snapshot: &Snapshot, step: usize) -> Option<ControlCommand> {
+        let time = step as f64 * self.dt;
+        let dt = self.dt;
+        let hero = &mut self.heroes[k];
+        let map = self.maps[hero.assignment.scene].clone();
+        let agents = snapshot.scene(hero.assignment.scene);
+        let me = *agents.get(hero.assignment.agent)?;
+        if !me.present {
+            return None;
+        }
+        let target = agents.get(hero.assignment.target).copied()?;
+        if let Some(last) = hero.last_xy {
+            hero.travelled += ((me.x - last[0]).powi(2) + (me.y - last[1]).powi(2)).sqrt();
+        }
+        hero.last_xy = Some([me.x, me.y]);
+        let lane = match hero.lane {
+            Some(l) => locate_on_lane(&map, l, [me.x, me.y]).0,
+            None => map.lane_projection([me.x, me.y], me.heading)?.lane,
+        };
+        hero.lane = Some(lane);
+        if hero.longitudinal.is_none() {
+            hero.longitudinal = Some(Longitudinal::Cruise { speed: me.speed });
+        }
+
+        // Start every phase whose trigger fires, in order, each once the previous one has
+        // completed.
+        while let Some(phase) = hero.assignment.phases.get(hero.next_phase).cloned() {
+            let since = match hero.next_phase {
+                0 => Some(0.0),
+                p => hero.progress[p - 1].done_step.map(|d| d as f64 * dt),
+            };
+            let Some(since) = since else { break };
+            if !Self::fires(&phase.trigger, hero, &me, &target, time, since) {
+                break;
+            }
+            let p = hero.next_phase;
+            hero.progress[p].fired_step = Some(step);
+            hero.next_phase += 1;
+            match phase.action {
+                Action::ChangeLane {
+                    direction,
+                    lateral_speed,
+                } => {
+                    let l = &map.lanes()[lane];
+                    let side = match direction {
+                        Direction::Left => l.left_neighbour,
+                        Direction::Right => l.right_neighbour,
+                    };
+                    match side {
+                        Some(to) => {
+                            hero.lateral = Lateral::Change {
+                                to,
+                                lateral_speed,
+                                phase: p,
+                            }
+                        }
+                        None => {
+                            hero.progress[p].failed =
+                                Some(format!("no lane to the {direction:?} at step {step}"))
+                        }
+                    }
+                }
+                Action::Swerve {
+                    direction,
+                    amplitude,
+                    period,
+                } => {
+                    hero.lateral = Lateral::Swerve {
+                        sign: if direction == Direction::Left {
+                            1.0
+                        } else {
+                            -1.0
+                        },
+                        amplitude,
+                        period,
+                        since: time,
+                        phase: p,
+                    }
+                }
+                Action::Brake {
+                    decel,
+                    jerk,
+                    min_speed,
+                } => {
+                    hero.longitudinal = Some(Longitudinal::Brake {
+                        decel,
+                        jerk,
+                        min_speed,
+                        since: time,
+                        phase: p,
+                    })
+                }
+                Action::Accelerate { accel, max_speed } => {
+                    hero.longitudinal = Some(Longitudinal::Accelerate { accel, max_speed });
+                    hero.progress[p].done_step = Some(step);
+                }
+                Action::Cruise { speed } => {
+                    hero.longitudinal = Some(Longitudinal::Cruise { speed });
+                    hero.progress[p].done_step = Some(step);
+                }
+                Action::FollowTarget {
+                    time_gap,
+                    max_speed,
+                } => {
+                    hero.longitudinal = Some(Longitudinal::Follow {
+                        time_gap,
+                        max_speed,
+                    });
+                    hero.progress[p].done_step = Some(step);
+                }
+            }
+        }
+
+        // Lateral: the lane to track and the offset from its centre.
+        let ld = look_ahead(me.speed);
+        let (path_lane, offset) = match hero.lateral.clone() {
+            Lateral::Keep => (lane, 0.0),
+            Lateral::Change {
+                to,
+                lateral_speed,
+                phase,
+            } => {
+                let (to, _, lateral) = locate_on_lane(&map, to, [me.x, me.y]);
+                if lateral.abs() < LANE_CHANGE_DONE_M {
+                    hero.lateral = Lateral::Keep;
+                    hero.lane = Some(to);
+                    hero.progress[phase].done_step.get_or_insert(step);
+                    (to, 0.0)
+                } else {
+                    hero.lateral = Lateral::Change {
+                        to,
+                        lateral_speed,
+                        phase,
+                    };
+                    // Aim so that the approach runs at about `lateral_speed`.
+                    let remaining = lateral.abs() - lateral_speed * ld / me.speed.max(1.0);
+                    (to, remaining.max(0.0).copysign(lateral))
+                }
+            }
+            Lateral::Swerve {
+                sign,
+                amplitude,
+                period,
+                since,
+                phase,
+            } => {
+                let tau = time - since + ld / me.speed.max(1.0);
+                if time - since >= period {
+                    hero.lateral = Lateral::Keep;
+                    hero.progress[phase].done_step.get_or_insert(step);
+                }
+                let wave = if tau < period {
+                    sign * amplitude * (std::f64::consts::TAU * tau / period).sin()
+                } else {
+                    0.0
+                };
+                (lane, wave)
+            }
+        };
+        let (_, s, _) = locate_on_lane(&map, path_lane, [me.x, me.y]);
+        let path = LanePath::new(&map, path_lane, s, 0.0, PATH_AHEAD_M);
+        let steer = steer_along(&me, &path, offset);
+
+        // Longitudinal.
+        let accel = match hero.longitudinal.clone() {
+            None => 0.0,
+            Some(Longitudinal::Cruise { speed }) => {
+                let leader = find_leader(&path, hero.assignment.agent, agents);
+                idm_accel(
+                    &self.idm,
+                    me.speed,
+                    speed,
+                    leader.map(|l| (l.gap, me.speed - l.speed)),
+                )
+            }
+            Some(Longitudinal::Brake {
+                decel,
+                jerk,
+                min_speed,
+                since,
+                phase,
+            }) => {
+                if me.speed <= min_speed + SPEED_REACHED {
+                    hero.progress[phase].done_step.get_or_insert(step);
+                    // Hold the speed reached (a proportional hold, never below zero).
+                    (min_speed - me.speed) / dt
+                } else {
+                    -(decel.min(jerk * (time - since + dt)))
+                }
+            }
+            Some(Longitudinal::Accelerate { accel, max_speed }) => {
+                if me.speed >= max_speed - SPEED_REACHED {
+                    (max_speed - me.speed) / dt
+                } else {
+                    accel
+                }
+            }
+            Some(Longitudinal::Follow {
+                time_gap,
+                max_speed,
+            }) => {
+                let tailgater = IdmParams {
+                    time_gap_s: time_gap,
+                    min_gap_m: 1.0,
+                    accel: 2.5,
+                    ..self.idm
+                };
+                let ahead = path
+                    .project([target.x, target.y])
+                    .filter(|(station, _)| target.present && *station > 0.0)
+                    .map(|(station, _)| {
+                        let gap = station - 0.5 * (me.length + target.length);
+                        (gap, me.speed - target.speed)
+                    });
+                idm_accel(&tailgater, me.speed, max_speed, ahead)
+            }
+        };
+        // Never command a reversal: at most stop within this step.
+        let accel = accel.max(-me.speed / dt);
+        Some(ControlCommand { accel, steer })
+    }
+}
+
+impl Policy for HeroScripts {
+    fn act(&mut self, obs: &Observation) -> Controls {
+        let snapshot = Snapshot::from_observation(obs);
+        let n = snapshot.agents_per_scene;
+        let mut commands = vec![ControlCommand::default(); snapshot.agents.len()];
+        for k in 0..self.heroes.len() {
+            let slot = self.heroes[k].assignment.scene * n + self.heroes[k].assignment.agent;
+            if let Some(c) = self.command(k, &snapshot, obs.step) {
+                commands[slot] = c;
+            }
+        }
+        to_controls(
+            &commands,
+            &self.limits,
+            [snapshot.batch, n],
+            &obs.batch.agent_size.device(),
+        )
+    }
+}

@@ -1,0 +1,354 @@
+//! Long-tail scenarios: the shipped families, seeded sampling, validation, error messages, and
+//! the difficulty of the sets for the IDM reference driver compared with the real A9 scenes.
+
+mod common;
+
+use std::collections::BTreeSet;
+use std::sync::OnceLock;
+
+use burn::prelude::*;
+use rayon::prelude::*;
+use rtr::data::TrafficStatistics;
+use rtr::driver::{IdmDriver, IdmParams};
+use rtr::geometry::OrientedBox;
+use rtr::map::BoxOnRoad;
+use rtr::scenario::{
+    ConcreteScenario, FamilySet, GenerateConfig, LogicalScenario, SamplingContext, ScenarioSet,
+    builtin_families, family_seed, generate_sets, hero_scripts, load_families, sample_scenario,
+};
+use rtr::scene::{Scene, SceneBatch};
+use rtr::sim::{ActionLimits, Dynamics, MapCaches, RolloutConfig, Scripted, rollout};
+
+fn stats() -> &'static TrafficStatistics {
+    static STATS: OnceLock<TrafficStatistics> = OnceLock::new();
+    STATS.get_or_init(|| {
+        let a9 = common::a9();
+        TrafficStatistics::from_recording(&a9.recording, &a9.map, 1.0)
+    })
+}
+
+fn families() -> &'static Vec<LogicalScenario> {
+    static FAMILIES: OnceLock<Vec<LogicalScenario>> = OnceLock::new();
+    FAMILIES.get_or_init(|| load_families(&builtin_families()).expect("shipped families load"))
+}
+
+fn ctx() -> SamplingContext<'static> {
+    SamplingContext {
+        stats: stats(),
+        dt: 0.5,
+        history_steps: 4,
+    }
+}
+
+#[test]
+fn a9_traffic_statistics_are_plausible_motorway_traffic() {
+    let s = stats();
+    assert_eq!(s.lanes.len(), 3, "three lanes per carriageway on the A9");
+    for (rank, lane) in s.lanes.iter().enumerate() {
+        let v = lane.median_speed();
+        assert!(
+            (15.0..45.0).contains(&v),
+            "lane {rank}: median speed {v} m/s"
+        );
+        let h = lane.median_headway();
+        assert!(
+            (0.5..10.0).contains(&h),
+            "lane {rank}: median headway {h} s"
+        );
+    }
+    // The fast lane is faster than the slow lane.
+    assert!(s.lanes[2].median_speed() > s.lanes[0].median_speed());
+}
+
+#[test]
+fn shipped_families_cover_the_paper_sizes_and_ood_is_new() {
+    let f = families();
+    let train: Vec<_> = f.iter().filter(|f| f.set == FamilySet::Train).collect();
+    let ood: Vec<_> = f.iter().filter(|f| f.set == FamilySet::Ood).collect();
+    assert!(train.len() >= 25, "{} training families", train.len());
+    assert!(ood.len() >= 11, "{} OOD families", ood.len());
+    // The held-out families use map topologies the training ones never see.
+    let train_maps: BTreeSet<&str> = train.iter().map(|f| f.map.preset.as_str()).collect();
+    let new_maps: Vec<&str> = ood
+        .iter()
+        .map(|f| f.map.preset.as_str())
+        .filter(|m| !train_maps.contains(m))
+        .collect();
+    assert!(new_maps.contains(&"off_ramp_fork") && new_maps.contains(&"lane_drop"));
+}
+
+/// Every concrete scenario's initial state is on the road and collision-free, and every hero
+/// phase fired and completed in the reference run.
+fn assert_valid(s: &ConcreteScenario) {
+    let scene = s.to_scene().unwrap();
+    let now = scene.current_step();
+    let boxes: Vec<OrientedBox> = scene
+        .agents
+        .iter()
+        .map(|a| a.footprint(now).unwrap())
+        .collect();
+    for (i, b) in boxes.iter().enumerate() {
+        assert_eq!(
+            scene.map.box_on_road(b),
+            BoxOnRoad::OnRoad,
+            "{}: agent {i}",
+            s.id()
+        );
+        for other in &boxes[i + 1..] {
+            assert!(!b.overlaps(other), "{}: overlapping start", s.id());
+        }
+    }
+    assert!(!s.heroes.is_empty());
+    for hero in &s.reference.phases {
+        for p in hero {
+            assert!(
+                p.fired_step.is_some() && p.done_step.is_some() && p.failed.is_none(),
+                "{}: {p:?}",
+                s.id()
+            );
+        }
+    }
+}
+
+#[test]
+fn every_family_produces_valid_scenarios_that_round_trip_through_json() {
+    let dir = tempfile::tempdir().unwrap();
+    let failures: Vec<String> = families()
+        .par_iter()
+        .filter_map(|family| {
+            let s = match sample_scenario(
+                family,
+                &ctx(),
+                family_seed(11, &family.name, 0),
+                ScenarioSet::Eval,
+                0,
+            ) {
+                Ok(s) => s,
+                Err(e) => return Some(e.to_string()),
+            };
+            assert_eq!(s.family, family.name);
+            assert_valid(&s);
+            let path = dir.path().join(format!("{}.json", s.id()));
+            s.write(&path).unwrap();
+            let back = ConcreteScenario::from_json_file(&path).unwrap();
+            assert_eq!(back, s);
+            None
+        })
+        .collect();
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+#[test]
+fn same_seed_gives_byte_identical_sets_and_other_seeds_differ() {
+    let config = |seed| GenerateConfig {
+        seed,
+        in_distribution: 6,
+        ood: 2,
+        ..Default::default()
+    };
+    let json = |seed| {
+        let sets = generate_sets(families(), stats(), &config(seed)).unwrap();
+        assert_eq!(
+            (sets.train.len(), sets.eval.len(), sets.ood.len()),
+            (3, 3, 2)
+        );
+        ScenarioSet::ALL
+            .iter()
+            .flat_map(|&set| {
+                sets.set(set)
+                    .iter()
+                    .map(|s| s.to_json().unwrap())
+                    .collect::<Vec<_>>()
+            })
+            .collect::<Vec<_>>()
+    };
+    let a = json(5);
+    assert_eq!(a, json(5));
+    let b = json(6);
+    assert!(
+        a.iter().zip(&b).all(|(x, y)| x != y),
+        "every scenario changes with the seed"
+    );
+    // Written files carry their family and are named by set.
+    let dir = tempfile::tempdir().unwrap();
+    let sets = generate_sets(families(), stats(), &config(5)).unwrap();
+    assert_eq!(sets.write(dir.path()).unwrap(), 8);
+    let eval = std::fs::read_dir(dir.path().join("eval")).unwrap().count();
+    assert_eq!(eval, 3);
+    let first = &sets.ood[0];
+    let text = std::fs::read_to_string(dir.path().join("ood").join(format!("{}.json", first.id())))
+        .unwrap();
+    assert!(text.contains(&format!("\"family\": \"{}\"", first.family)));
+}
+
+fn family_error(text: &str) -> String {
+    LogicalScenario::from_toml_str(text, "bad.toml")
+        .unwrap_err()
+        .to_string()
+}
+
+const GOOD: &str = r#"
+name = "probe"
+description = "test"
+set = "train"
+[map]
+preset = "straight"
+length = 900
+[target]
+lane = 2
+station = [250, 300]
+[[heroes]]
+lane_offset = -1
+station_offset = [8, 20]
+speed_offset = [-3, -1]
+[[heroes.phases]]
+trigger = { kind = "ahead_gap_below", metres = [5, 15] }
+action = { kind = "change_lane", direction = "right", lateral_speed = [1, 2] }
+"#;
+
+#[test]
+fn invalid_family_files_name_the_file_the_place_and_what_was_expected() {
+    assert!(LogicalScenario::from_toml_str(GOOD, "good.toml").is_ok());
+    let cases = [
+        (
+            GOOD.replace("length = 900", "lenght = 900"),
+            "no parameter `lenght`",
+        ),
+        (
+            GOOD.replace("station = [250, 300]", "station = \"far\""),
+            "a number or a [low, high] range",
+        ),
+        (
+            GOOD.replace("lateral_speed = [1, 2]", "lateral_speed = [2, 1]"),
+            "low <= high",
+        ),
+        (
+            GOOD.replace("lateral_speed = [1, 2]", "lateral_speed = [1, 40]"),
+            "lateral_speed",
+        ),
+        (
+            GOOD.replace("lane = 2", "lane = \"shoulder\""),
+            "\"ramp\", \"accel\", \"exit\"",
+        ),
+        (
+            GOOD.replace("lane_offset = -1", "lane = 1\nlane_offset = -1"),
+            "exactly one of `lane` and `lane_offset`",
+        ),
+        (
+            GOOD.replace("kind = \"change_lane\"", "kind = \"teleport\""),
+            "teleport",
+        ),
+        (GOOD.replace("set = \"train\"", "set = \"test\""), "test"),
+        (
+            GOOD.split("[[heroes]]").next().unwrap().to_string(),
+            "heroes",
+        ),
+        (
+            GOOD.replace("preset = \"straight\"", "preset = \"roundabout\""),
+            "roundabout",
+        ),
+    ];
+    for (text, expected) in cases {
+        let err = family_error(&text);
+        assert!(err.contains("bad.toml"), "{err}");
+        assert!(err.contains(expected), "expected `{expected}` in: {err}");
+    }
+    // Syntax-level errors carry the line.
+    let err = family_error(&GOOD.replace("station = [250, 300]", "station = [250, 300"));
+    assert!(err.contains("line"), "{err}");
+}
+
+/// Collision rate (% of policy-driven agents) of the IDM reference driver on `scenes`, and
+/// the number of agents; with `targets_only`, only agent 0 of each scene (a scenario's target).
+fn idm_collision_pct(
+    scenes: &[&Scene],
+    scenarios: Option<&[&ConcreteScenario]>,
+    targets_only: bool,
+) -> (f64, usize) {
+    #[allow(deprecated)]
+    let device = Device::ndarray();
+    let batch = SceneBatch::from_scenes(scenes, &device).unwrap();
+    let mut idm = IdmDriver::new(scenes, IdmParams::default(), ActionLimits::default());
+    let mut caches = MapCaches::default();
+    let dynamics = Dynamics::bicycle(0.5);
+    let config = RolloutConfig::default();
+    let result = match scenarios {
+        Some(sc) => {
+            let mut heroes = hero_scripts(sc, scenes);
+            let mut policy = Scripted {
+                policy: &mut idm,
+                script: &mut heroes,
+                mask: batch.agent_hero.clone(),
+            };
+            rollout(scenes, &batch, &dynamics, &mut policy, &mut caches, &config).unwrap()
+        }
+        None => rollout(scenes, &batch, &dynamics, &mut idm, &mut caches, &config).unwrap(),
+    };
+    let [b, n, t] = result.collision.dims();
+    let flags = result.collision.to_data().try_into_vec::<bool>().unwrap();
+    let mut controlled = batch
+        .agent_controlled
+        .to_data()
+        .try_into_vec::<bool>()
+        .unwrap();
+    if targets_only {
+        for (i, c) in controlled.iter_mut().enumerate() {
+            *c &= i % n == 0;
+        }
+    }
+    let agents = controlled.iter().filter(|&&c| c).count();
+    let collided = (0..b * n)
+        .filter(|&i| controlled[i] && flags[i * t..(i + 1) * t].iter().any(|&f| f))
+        .count();
+    (100.0 * collided as f64 / agents as f64, agents)
+}
+
+#[test]
+fn long_tail_scenarios_are_harder_than_real_scenes_for_the_idm_driver() {
+    let nominal: Vec<&Scene> = common::a9_scenes().test.iter().collect();
+    let (nominal_pct, nominal_agents) = idm_collision_pct(&nominal, None, false);
+
+    let sets = generate_sets(
+        families(),
+        stats(),
+        &GenerateConfig {
+            in_distribution: 50,
+            ood: 0,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let scenarios: Vec<&ConcreteScenario> = sets.train.iter().chain(&sets.eval).collect();
+    let scenes: Vec<Scene> = scenarios.iter().map(|s| s.to_scene().unwrap()).collect();
+    // Batches share one window shape: group by horizon.
+    let (mut total, mut targets) = ((0.0, 0usize), (0.0, 0usize));
+    let horizons: BTreeSet<usize> = scenes.iter().map(|s| s.future_steps).collect();
+    for h in horizons {
+        let idx: Vec<usize> = (0..scenes.len())
+            .filter(|&i| scenes[i].future_steps == h)
+            .collect();
+        let group: Vec<&Scene> = idx.iter().map(|&i| &scenes[i]).collect();
+        let group_sc: Vec<&ConcreteScenario> = idx.iter().map(|&i| scenarios[i]).collect();
+        let (pct, agents) = idm_collision_pct(&group, Some(&group_sc), false);
+        total = (total.0 + pct * agents as f64, total.1 + agents);
+        let (pct, agents) = idm_collision_pct(&group, Some(&group_sc), true);
+        targets = (targets.0 + pct * agents as f64, targets.1 + agents);
+    }
+    let long_tail_pct = total.0 / total.1 as f64;
+    let target_pct = targets.0 / targets.1 as f64;
+    println!(
+        "IDM reference driver collision rate: nominal A9 test scenes {nominal_pct:.2} % of {nominal_agents} agents; \
+         long-tail ({} scenarios) {long_tail_pct:.2} % of {} agents, {target_pct:.1} % of the targets",
+        scenarios.len(),
+        total.1
+    );
+    assert!(
+        long_tail_pct > 2.0 * nominal_pct.max(0.5),
+        "{long_tail_pct} vs {nominal_pct}"
+    );
+    // The heroes act on the targets: most of the difficulty is theirs.
+    assert!(
+        target_pct > 10.0 * nominal_pct.max(0.5),
+        "{target_pct} vs {nominal_pct}"
+    );
+}
