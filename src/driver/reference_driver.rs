@@ -191,6 +191,10 @@ pub fn to_controls(
 
 impl Policy for IdmDriver {
     fn act(&mut self, obs: &Observation) -> Controls {
+        if obs.step == 0 {
+            // A new rollout: desired speeds are those at its start.
+            self.desired.clear();
+        }
         let snapshot = Snapshot::from_observation(obs);
         let commands = self.commands(&snapshot);
         to_controls(

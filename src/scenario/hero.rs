@@ -91,7 +91,8 @@ struct HeroState {
     progress: Vec<PhaseProgress>,
 }
 
-/// The hero script policy of a batch.
+/// The hero script policy of a batch. It keeps each hero's progress, so it serves one
+/// rollout: build a fresh one (e.g. with `scenario::hero_scripts`) for the next.
 pub struct HeroScripts {
     maps: Vec<Arc<Map>>,
     heroes: Vec<HeroState>,
