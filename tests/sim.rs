@@ -215,3 +215,43 @@ fn a_car_steered_off_the_road_is_flagged_at_the_right_step_and_leaving_the_end_i
         "removed after leaving through the end"
     );
 }
+
+#[test]
+fn heroes_are_simulated_without_a_log_and_their_infractions_are_not_the_policys() {
+    // Head-on as above, but agent 1 is a scripted hero whose log ends at the current step.
+    let y = -1.875;
+    let mut scene = straight_scene(
+        &[
+            (100.0, y, 0.0, 10.0),
+            (160.0, y, std::f64::consts::PI, 10.0),
+        ],
+        10,
+    );
+    let now = scene.current_step();
+    let hero = &mut scene.agents[1];
+    hero.role = AgentRole::Hero;
+    for k in now + 1..hero.valid.len() {
+        hero.valid[k] = false;
+    }
+    let out = run(&scene);
+    let t = out.steps;
+    let collision = flags(&out.collision);
+    assert_eq!(
+        (0..t).find(|&k| collision[k]),
+        Some(5),
+        "the policy's agent"
+    );
+    assert!(
+        collision[t..].iter().all(|&c| !c),
+        "a hero's crash is not flagged"
+    );
+    let rewards = values(out.rewards.clone());
+    assert!(rewards[t..].iter().all(|&r| r == 0.0));
+    // The hero drove on through the dynamics (no log to replay) until it collided.
+    let present = flags(&out.present);
+    assert!(present[(t + 1) + 3], "hero still on the road at step 3");
+    let [b, n, steps, f] = out.poses.dims();
+    let poses = values(out.poses.clone().reshape([b, n, steps * f]));
+    let hero_x = |k: usize| poses[((t + 1) + k) * 4];
+    assert!((hero_x(3) - (160.0 - 15.0)).abs() < 0.1, "{}", hero_x(3));
+}

@@ -17,4 +17,4 @@ pub use lane_path::{LanePath, PathPoint, locate_on_lane};
 pub use reference_driver::{
     IdmDriver, LEADER_HORIZON_M, Leader, find_leader, idm_command, steer_along, to_controls,
 };
-pub use snapshot::{AgentView, Snapshot};
+pub use snapshot::{AgentView, Snapshot, host_f64};

@@ -36,7 +36,8 @@ pub struct Snapshot {
     pub agents: Vec<AgentView>,
 }
 
-fn host(t: burn::Tensor<3>) -> Vec<f64> {
+/// A tensor's values on the host as f64 (one read-back).
+pub fn host_f64<const D: usize>(t: burn::Tensor<D>) -> Vec<f64> {
     t.to_data()
         .convert::<f64>()
         .try_into_vec::<f64>()
@@ -51,8 +52,8 @@ impl Snapshot {
             .frames
             .last()
             .expect("a rollout always starts with the logged history");
-        let poses = host(frame.poses.clone());
-        let size = host(obs.batch.agent_size.clone());
+        let poses = host_f64(frame.poses.clone());
+        let size = host_f64(obs.batch.agent_size.clone());
         let present: Vec<bool> = frame
             .present
             .to_data()

@@ -18,6 +18,9 @@ use crate::io::atomic_write;
 use crate::map::{LaneGraph, Map, ProceduralMap};
 use crate::scene::{AgentRole, Scene, SceneAgent};
 
+/// Longest simulated window a scenario file may ask for (steps; 10 minutes at 0.5 s).
+pub const MAX_FUTURE_STEPS: usize = 1200;
+
 /// The set a concrete scenario belongs to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -177,6 +180,14 @@ impl ConcreteScenario {
                 source,
                 "dt",
                 format!("{}: expected a positive step", self.dt),
+            ));
+        }
+        // Windows are allocated per step: a corrupt count must be an error, not an abort.
+        if self.future_steps == 0 || self.future_steps > MAX_FUTURE_STEPS {
+            return Err(Error::invalid(
+                source,
+                "future_steps",
+                format!("{}: expected 1 to {MAX_FUTURE_STEPS}", self.future_steps),
             ));
         }
         Ok(())

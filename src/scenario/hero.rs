@@ -208,9 +208,16 @@ impl HeroScripts {
             hero.travelled += ((me.x - last[0]).powi(2) + (me.y - last[1]).powi(2)).sqrt();
         }
         hero.last_xy = Some([me.x, me.y]);
-        let lane = match hero.lane {
-            Some(l) => locate_on_lane(&map, l, [me.x, me.y]).0,
-            None => map.lane_projection([me.x, me.y], me.heading)?.lane,
+        // The lane kept and the arc length along it, found once per step.
+        let (lane, s) = match hero.lane {
+            Some(l) => {
+                let (lane, s, _) = locate_on_lane(&map, l, [me.x, me.y]);
+                (lane, s)
+            }
+            None => {
+                let p = map.lane_projection([me.x, me.y], me.heading)?;
+                (p.lane, p.s)
+            }
         };
         hero.lane = Some(lane);
         if hero.longitudinal.is_none() {
@@ -308,19 +315,19 @@ impl HeroScripts {
 
         // Lateral: the lane to track and the offset from its centre.
         let ld = look_ahead(me.speed);
-        let (path_lane, offset) = match hero.lateral.clone() {
-            Lateral::Keep => (lane, 0.0),
+        let (path_lane, path_s, offset) = match hero.lateral.clone() {
+            Lateral::Keep => (lane, s, 0.0),
             Lateral::Change {
                 to,
                 lateral_speed,
                 phase,
             } => {
-                let (to, _, lateral) = locate_on_lane(&map, to, [me.x, me.y]);
+                let (to, s_to, lateral) = locate_on_lane(&map, to, [me.x, me.y]);
                 if lateral.abs() < LANE_CHANGE_DONE_M {
                     hero.lateral = Lateral::Keep;
                     hero.lane = Some(to);
                     hero.progress[phase].done_step.get_or_insert(step);
-                    (to, 0.0)
+                    (to, s_to, 0.0)
                 } else {
                     hero.lateral = Lateral::Change {
                         to,
@@ -329,7 +336,7 @@ impl HeroScripts {
                     };
                     // Aim so that the approach runs at about `lateral_speed`.
                     let remaining = lateral.abs() - lateral_speed * ld / me.speed.max(1.0);
-                    (to, remaining.max(0.0).copysign(lateral))
+                    (to, s_to, remaining.max(0.0).copysign(lateral))
                 }
             }
             Lateral::Swerve {
@@ -349,11 +356,10 @@ impl HeroScripts {
                 } else {
                     0.0
                 };
-                (lane, wave)
+                (lane, s, wave)
             }
         };
-        let (_, s, _) = locate_on_lane(&map, path_lane, [me.x, me.y]);
-        let path = LanePath::new(&map, path_lane, s, 0.0, PATH_AHEAD_M);
+        let path = LanePath::new(&map, path_lane, path_s, 0.0, PATH_AHEAD_M);
         let steer = steer_along(&me, &path, offset);
 
         // Longitudinal.

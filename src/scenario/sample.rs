@@ -16,7 +16,7 @@ use super::hero::HeroScripts;
 use super::placement::{LaneRef, main_lanes_at, main_road_length, place};
 use super::range::{Range, Sampler, quantize};
 use crate::data::{AgentState, TrafficStatistics, VehicleClass, VehicleSample};
-use crate::driver::{IdmDriver, IdmParams};
+use crate::driver::{IdmDriver, IdmParams, host_f64};
 use crate::error::{Error, Result};
 use crate::geometry::OrientedBox;
 use crate::map::{BoxOnRoad, Map, ProceduralMap};
@@ -454,7 +454,7 @@ pub fn simulate_reference(scenario: &ConcreteScenario) -> Result<(Scene, Rollout
 /// The scenario as a scene whose future is the reference run (for drawing what happens).
 pub fn scene_with_reference_future(scenario: &ConcreteScenario) -> Result<Scene> {
     let (mut scene, result, _) = simulate_reference(scenario)?;
-    let poses = host(result.poses.clone());
+    let poses = host_f64(result.poses.clone());
     let present = result
         .present
         .to_data()
@@ -500,7 +500,7 @@ pub fn reference_run(scenario: &ConcreteScenario) -> std::result::Result<Referen
         }
     }
     // Heroes must stay on the road while they act.
-    let poses = host(result.poses.clone());
+    let poses = host_f64(result.poses.clone());
     let present = result
         .present
         .clone()
@@ -539,11 +539,4 @@ pub fn reference_run(scenario: &ConcreteScenario) -> std::result::Result<Referen
         collided_agents: any(result.collision),
         offroad_agents: any(result.offroad),
     })
-}
-
-fn host(t: Tensor<4>) -> Vec<f64> {
-    t.to_data()
-        .convert::<f64>()
-        .try_into_vec::<f64>()
-        .unwrap_or_default()
 }
