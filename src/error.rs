@@ -46,6 +46,20 @@ pub enum Error {
         message: String,
     },
 
+    /// Training produced NaN or infinity; nothing after the last good checkpoint was written.
+    #[error(
+        "training diverged at iteration {iteration} (after {update} optimizer steps): the \
+         {what} is {value}; the last good checkpoint is {checkpoint}. Lower \
+         optimizer.learning_rate or check the data, then resume or restart"
+    )]
+    Diverged {
+        iteration: usize,
+        update: usize,
+        what: String,
+        value: f64,
+        checkpoint: String,
+    },
+
     /// A command-line value or configuration value that is out of range.
     #[error("invalid argument: {0}")]
     InvalidArgument(String),

@@ -17,5 +17,6 @@ pub mod scene;
 pub mod sim;
 #[cfg(test)]
 mod test_rng;
+pub mod train;
 
 pub use error::{Error, Result};

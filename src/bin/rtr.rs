@@ -52,6 +52,24 @@ enum Command {
         #[command(subcommand)]
         command: ScenariosCommand,
     },
+    /// Train a policy from a run file (experiments/*/*.toml): BC, IL, RL, RL-Shaped, BC+RL,
+    /// RTR, KL-L or KL-R. Writes OUT/curves.csv, OUT/config.toml and OUT/checkpoints/.
+    Train(TrainArgs),
+}
+
+#[derive(Args)]
+struct TrainArgs {
+    /// The run file (TOML).
+    #[arg(long)]
+    config: PathBuf,
+    /// Run folder; default: runs/<config file stem>.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Continue the run in OUT from its last checkpoint (same result as an uninterrupted run).
+    #[arg(long)]
+    resume: bool,
+    #[command(flatten)]
+    data: DataArgs,
 }
 
 #[derive(Subcommand)]
@@ -106,6 +124,26 @@ enum BenchCommand {
     /// Policy + value networks at the paper's size (hidden 128): forward and forward+backward
     /// time and peak memory for B=32 scenes x N=32 agents, H=5, on the A9 lane graph.
     Model(BenchArgs),
+    /// Training throughput: one closed-loop IL step (scenes/s) and one factorized-PPO
+    /// iteration (agent-steps/s collected and updated) at the paper's batch sizes.
+    Train(TrainBenchArgs),
+}
+
+#[derive(Args)]
+struct TrainBenchArgs {
+    #[command(flatten)]
+    data: DataArgs,
+    #[arg(long, default_value = "ndarray")]
+    backend: Backend,
+    /// The small network of the tests instead of the paper's (hidden 128).
+    #[arg(long)]
+    small: bool,
+    #[arg(long, default_value_t = 32)]
+    il_minibatch: usize,
+    #[arg(long, default_value_t = 192)]
+    ppo_batch: usize,
+    #[arg(long, default_value_t = 32)]
+    ppo_minibatch: usize,
 }
 
 #[derive(Args)]
@@ -297,7 +335,52 @@ fn run(cli: Cli) -> Result<()> {
         } => model_info(config, small, json),
         Command::Bench { command } => bench(command),
         Command::Scenarios { command } => scenarios(command),
+        Command::Train(args) => train(args),
     }
+}
+
+fn train(args: TrainArgs) -> Result<()> {
+    let config = rtr::train::TrainConfig::from_toml_file(&args.config)?;
+    let out = args.out.clone().unwrap_or_else(|| {
+        let stem = args
+            .config
+            .file_stem()
+            .map_or("run".into(), |s| s.to_owned());
+        PathBuf::from("runs").join(stem)
+    });
+    let dataset = args.data.load()?;
+    let method = config.method.name();
+    let progress = indicatif::ProgressBar::new(0).with_style(
+        indicatif::ProgressStyle::with_template(
+            "{prefix} [{elapsed_precise}] {bar:30} {pos}/{len} iterations, eta {eta} {msg}",
+        )
+        .map_err(|e| Error::InvalidArgument(format!("progress template: {e}")))?,
+    );
+    progress.set_prefix(method.to_string());
+    let summary = rtr::train::session::train(config, &dataset, &out, args.resume, &progress)?;
+    progress.finish();
+    println!(
+        "{method}: {} iterations, {} optimizer steps; checkpoint {}; curves {}",
+        summary.iterations,
+        summary.updates,
+        summary.checkpoint.display(),
+        out.join("curves.csv").display()
+    );
+    if let Some(last) = summary.last {
+        println!(
+            "last step: loss {:.5} (IL {:.5}, BC {:.5}, PPO policy {:.5}, value {:.5}, KL {:.5}); \
+             rollout collisions {:.1}%, off-road {:.1}%",
+            last.loss,
+            last.il_loss,
+            last.bc_loss,
+            last.policy_loss,
+            last.value_loss,
+            last.kl,
+            last.collision_pct,
+            last.offroad_pct
+        );
+    }
+    Ok(())
 }
 
 fn render_scenario(path: &std::path::Path, args: &RenderArgs) -> Result<()> {
@@ -394,7 +477,38 @@ fn scenarios(command: ScenariosCommand) -> Result<()> {
 }
 
 fn bench(command: BenchCommand) -> Result<()> {
-    let (BenchCommand::Sim(args) | BenchCommand::Model(args)) = &command;
+    let report = match command {
+        BenchCommand::Train(args) => {
+            let model = if args.small {
+                ModelConfig::small()
+            } else {
+                ModelConfig::default()
+            };
+            serde_json::to_value(rtr::train::bench::bench_training(
+                &args.data.load()?,
+                args.backend,
+                model,
+                args.il_minibatch,
+                args.ppo_batch,
+                args.ppo_minibatch,
+            )?)
+        }
+        BenchCommand::Sim(args) => {
+            let (map, repetitions) = bench_inputs(&args)?;
+            serde_json::to_value(rtr::sim::bench::run(map, args.backend, repetitions)?)
+        }
+        BenchCommand::Model(args) => {
+            let (map, repetitions) = bench_inputs(&args)?;
+            serde_json::to_value(rtr::model::bench::run(map, args.backend, repetitions)?)
+        }
+    }
+    .map_err(|e| Error::InvalidArgument(format!("cannot encode report: {e}")))?;
+    println!("{report}");
+    Ok(())
+}
+
+/// The A9 map and the checked repetition count of a simulator or model benchmark.
+fn bench_inputs(args: &BenchArgs) -> Result<(std::sync::Arc<Map>, usize)> {
     if args.repetitions == 0 {
         return Err(Error::InvalidArgument(
             "--repetitions must be at least 1".into(),
@@ -402,18 +516,7 @@ fn bench(command: BenchCommand) -> Result<()> {
     }
     let dir = args.data.data.clone().unwrap_or_else(a9::default_dir);
     let map = std::sync::Arc::new(Map::from_xodr_file(&dir.join(a9::STATIC_FILE))?);
-    let (backend, repetitions) = (args.backend, args.repetitions);
-    let report = match command {
-        BenchCommand::Sim(_) => {
-            serde_json::to_value(rtr::sim::bench::run(map, backend, repetitions)?)
-        }
-        BenchCommand::Model(_) => {
-            serde_json::to_value(rtr::model::bench::run(map, backend, repetitions)?)
-        }
-    }
-    .map_err(|e| Error::InvalidArgument(format!("cannot encode report: {e}")))?;
-    println!("{report}");
-    Ok(())
+    Ok((map, args.repetitions))
 }
 
 fn model_info(config: Option<PathBuf>, small: bool, json: bool) -> Result<()> {

@@ -53,6 +53,19 @@ impl ActionDistribution {
         self.log_std.clone().exp()
     }
 
+    /// `[B, N]`: KL(self || other), summed over the two controls (closed form for Normals).
+    pub fn kl(&self, other: &ActionDistribution) -> Tensor<2> {
+        let [b, n, _] = self.mean.dims();
+        let log_ratio = other.log_std.clone() - self.log_std.clone();
+        let variance = self.log_std.clone().mul_scalar(2.0).exp();
+        let other_variance = other.log_std.clone().mul_scalar(2.0).exp();
+        let gap = (self.mean.clone() - other.mean.clone()).powi_scalar(2);
+        (log_ratio + (variance + gap) / other_variance.mul_scalar(2.0))
+            .sub_scalar(0.5)
+            .sum_dim(2)
+            .reshape([b, n])
+    }
+
     /// The same distribution cut from the autodiff graph (PPO's "old" policy).
     pub fn detach(&self) -> Self {
         Self {
@@ -108,5 +121,25 @@ mod tests {
             "sample sigma {}",
             var.sqrt()
         );
+    }
+
+    #[test]
+    fn kl_is_zero_for_equal_normals_and_matches_the_closed_form() {
+        #[allow(deprecated)]
+        let device = Device::ndarray();
+        let normal = |mean: [f32; 2], sigma: [f32; 2]| ActionDistribution {
+            mean: Tensor::from_data(TensorData::new(mean.to_vec(), [1, 1, 2]), &device),
+            log_std: Tensor::from_data(
+                TensorData::new(sigma.iter().map(|s| s.ln()).collect::<Vec<_>>(), [1, 1, 2]),
+                &device,
+            ),
+        };
+        let p = normal([1.0, 0.0], [0.5, 2.0]);
+        assert!(values(p.kl(&p))[0].abs() < 1e-6);
+        // KL(N(1, 0.5^2) || N(0, 1^2)) = ln(1 / 0.5) + (0.25 + 1) / 2 - 0.5; the second control
+        // is equal in both.
+        let q = normal([0.0, 0.0], [1.0, 2.0]);
+        let want = (2.0f64).ln() + 1.25 / 2.0 - 0.5;
+        assert!((values(p.kl(&q))[0] as f64 - want).abs() < 1e-5);
     }
 }

@@ -24,13 +24,15 @@ pub struct MapCache {
 /// One [`MapCache`] per distinct map of a batch (scenes of one recording share one).
 #[derive(Debug, Default)]
 pub struct MapCaches {
-    by_map: HashMap<*const Map, MapCache>,
+    /// Keyed by the map's address (an integer, so the cache can move between threads); the
+    /// cache holds the `Arc`, so the address stays taken while its entry lives.
+    by_map: HashMap<usize, MapCache>,
 }
 
 impl MapCaches {
     pub fn get(&mut self, map: &Arc<Map>) -> MapCache {
         self.by_map
-            .entry(Arc::as_ptr(map))
+            .entry(Arc::as_ptr(map) as usize)
             .or_insert_with(|| MapCache {
                 map: map.clone(),
                 raster: Arc::new(RoadRaster::new(map, RASTER_CELL)),

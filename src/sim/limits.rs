@@ -9,6 +9,7 @@ use super::state::Controls;
 /// Control ranges. Defaults: braking to -8 m/s^2 (emergency braking on dry asphalt),
 /// accelerating to 4 m/s^2, steering +-0.6 rad at the front wheel.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct ActionLimits {
     pub accel_min: f64,
     pub accel_max: f64,

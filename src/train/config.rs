@@ -1,0 +1,485 @@
+//! One training run as a TOML file (`experiments/<name>/*.toml`). Every field has the paper's
+//! value (appendix table "Training hyperparameters") as its default, so a run file names only
+//! what it changes; unknown fields are errors, so a typo never silently trains the default.
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::backend::Backend;
+use crate::error::{Error, Result};
+use crate::io::parse_toml;
+use crate::model::{ActionMode, ModelConfig};
+use crate::sim::ActionLimits;
+
+/// The learning methods of the paper's study (section 4) and its imitation-signal ablation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Method {
+    /// Single-step behaviour cloning on logged states (open loop).
+    #[serde(rename = "BC")]
+    Bc,
+    /// Closed-loop imitation by backpropagation through the rollout.
+    #[serde(rename = "IL")]
+    Il,
+    /// Factorized PPO on the infraction reward.
+    #[serde(rename = "RL")]
+    Rl,
+    /// RL plus the speed-limit shaping reward.
+    #[serde(rename = "RL-Shaped")]
+    RlShaped,
+    /// BC loss plus the PPO loss.
+    #[serde(rename = "BC+RL")]
+    BcRl,
+    /// Algorithm 1: closed-loop IL on nominal rollouts + lambda x PPO on all.
+    #[serde(rename = "RTR")]
+    Rtr,
+    /// RTR with the IL term replaced by the KL to a frozen IL policy, as a loss.
+    #[serde(rename = "KL-L")]
+    KlLoss,
+    /// RTR with the IL term replaced by the KL to a frozen IL policy, as a negative reward.
+    #[serde(rename = "KL-R")]
+    KlReward,
+}
+
+impl Method {
+    pub const ALL: [Method; 8] = [
+        Method::Bc,
+        Method::Il,
+        Method::Rl,
+        Method::RlShaped,
+        Method::BcRl,
+        Method::Rtr,
+        Method::KlLoss,
+        Method::KlReward,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Bc => "BC",
+            Method::Il => "IL",
+            Method::Rl => "RL",
+            Method::RlShaped => "RL-Shaped",
+            Method::BcRl => "BC+RL",
+            Method::Rtr => "RTR",
+            Method::KlLoss => "KL-L",
+            Method::KlReward => "KL-R",
+        }
+    }
+
+    /// Uses PPO (collects closed-loop experience with sampled actions).
+    pub fn uses_ppo(self) -> bool {
+        !matches!(self, Method::Bc | Method::Il)
+    }
+
+    /// Takes the closed-loop imitation loss on nominal rollouts.
+    pub fn uses_closed_loop_il(self) -> bool {
+        matches!(self, Method::Il | Method::Rtr)
+    }
+
+    /// Takes the open-loop behaviour-cloning loss.
+    pub fn uses_bc(self) -> bool {
+        matches!(self, Method::Bc | Method::BcRl)
+    }
+
+    /// Needs a frozen reference policy.
+    pub fn uses_reference(self) -> bool {
+        matches!(self, Method::KlLoss | Method::KlReward)
+    }
+}
+
+/// The whole run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrainConfig {
+    pub method: Method,
+    /// Drives every random choice: initialisation, scene sampling, action noise.
+    #[serde(default = "default_seed")]
+    pub seed: u64,
+    /// Weight of the RL loss (paper's lambda). Used by RL-type methods; RL alone ignores it
+    /// (its loss is the RL loss).
+    #[serde(default = "default_one")]
+    pub lambda: f64,
+    /// Share of long-tail initial states (paper's alpha).
+    #[serde(default)]
+    pub alpha: f64,
+    #[serde(default)]
+    pub optimizer: OptimizerConfig,
+    #[serde(default)]
+    pub ppo: PpoConfig,
+    #[serde(default)]
+    pub imitation: ImitationConfig,
+    #[serde(default)]
+    pub shaping: ShapingConfig,
+    #[serde(default)]
+    pub reference: Option<ReferenceConfig>,
+    #[serde(default)]
+    pub data: DataConfig,
+    #[serde(default)]
+    pub model: ModelConfig,
+    #[serde(default)]
+    pub limits: ActionLimits,
+    #[serde(default)]
+    pub run: RunConfig,
+}
+
+fn default_seed() -> u64 {
+    2023
+}
+
+fn default_one() -> f64 {
+    1.0
+}
+
+/// AdamW with the paper's step decay.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct OptimizerConfig {
+    pub learning_rate: f64,
+    /// The learning rate is multiplied by this every `decay_every_epochs`.
+    pub decay: f64,
+    pub decay_every_epochs: usize,
+    pub epochs: usize,
+    pub weight_decay: f64,
+    /// Global L2 norm of each network's gradient (as PyTorch's `clip_grad_norm_`).
+    pub grad_clip_norm: f64,
+    /// Initial states per epoch; `None` = as many as the nominal training set holds.
+    pub epoch_scenes: Option<usize>,
+}
+
+impl Default for OptimizerConfig {
+    fn default() -> Self {
+        Self {
+            learning_rate: 1e-5,
+            decay: 0.2,
+            decay_every_epochs: 3,
+            epochs: 10,
+            weight_decay: 1e-4,
+            grad_clip_norm: 1.0,
+            epoch_scenes: None,
+        }
+    }
+}
+
+impl OptimizerConfig {
+    /// Learning rate during `epoch` (0-based).
+    pub fn learning_rate_at(&self, epoch: usize) -> f64 {
+        let decays = epoch / self.decay_every_epochs.max(1);
+        self.learning_rate * self.decay.powi(decays as i32)
+    }
+}
+
+/// Which PPO: the paper's per-agent one, or the scene-level one of its ablation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PpoVariant {
+    /// Per-agent ratios, rewards, values and advantages (paper section 3.2).
+    Factorized,
+    /// One joint ratio, the summed scene reward and value per scene (the ablation).
+    SceneLevel,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PpoConfig {
+    /// Initial states collected per policy iteration.
+    pub batch: usize,
+    /// Initial states per gradient step.
+    pub minibatch: usize,
+    pub epochs: usize,
+    pub clip: f64,
+    pub gamma: f64,
+    pub gae_lambda: f64,
+    pub variant: PpoVariant,
+    /// Weight of the value loss inside L_RL = L_policy + c L_value (paper: 1).
+    pub value_weight: f64,
+    /// Standardise advantages per minibatch (common practice; the paper does not say).
+    pub normalize_advantages: bool,
+}
+
+impl Default for PpoConfig {
+    fn default() -> Self {
+        Self {
+            batch: 192,
+            minibatch: 32,
+            epochs: 1,
+            clip: 0.2,
+            gamma: 0.79,
+            gae_lambda: 1.0,
+            variant: PpoVariant::Factorized,
+            value_weight: 1.0,
+            normalize_advantages: false,
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ImitationConfig {
+    /// Initial states per gradient step for IL and BC.
+    pub minibatch: usize,
+    /// Huber threshold (m) of the trajectory distance.
+    pub huber_delta: f64,
+    /// Mean action (the paper's choice) or reparameterised samples in the IL rollout.
+    pub action: ActionMode,
+}
+
+impl Default for ImitationConfig {
+    fn default() -> Self {
+        Self {
+            minibatch: 32,
+            huber_delta: 1.0,
+            action: ActionMode::Mean,
+        }
+    }
+}
+
+/// RL-Shaped: reward + weight (C - delta) / C with delta = |speed - speed limit|; the agent's
+/// episode ends once delta >= C.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ShapingConfig {
+    pub weight: f64,
+    /// C (m/s).
+    pub tolerance: f64,
+}
+
+impl Default for ShapingConfig {
+    fn default() -> Self {
+        Self {
+            weight: 0.5,
+            tolerance: 30.0,
+        }
+    }
+}
+
+/// The frozen policy of KL-L / KL-R.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ReferenceConfig {
+    /// A policy checkpoint (`policy.bpk`) of the same model config, relative to the run file.
+    pub checkpoint: PathBuf,
+    /// Weight of the KL term (loss weight for KL-L, reward scale for KL-R).
+    #[serde(default = "default_one")]
+    pub weight: f64,
+}
+
+/// Where initial states come from.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct DataConfig {
+    /// Use only the first this many nominal training scenes (tiny runs).
+    pub nominal_limit: Option<usize>,
+    /// Generated long-tail training scenarios: a folder written by `rtr scenarios generate`
+    /// (its `train/` is used), or `None` to generate them at start.
+    pub longtail_dir: Option<PathBuf>,
+    /// When generating: in-distribution draws (half become training scenarios).
+    pub longtail_generate: usize,
+    /// Use only the first this many long-tail training scenarios.
+    pub longtail_limit: Option<usize>,
+    /// Cap on rollout steps (long-tail scenarios run 10-14 s); `None` = each scene's horizon.
+    pub max_rollout_steps: Option<usize>,
+}
+
+impl Default for DataConfig {
+    fn default() -> Self {
+        Self {
+            nominal_limit: None,
+            longtail_dir: None,
+            longtail_generate: 333,
+            longtail_limit: None,
+            max_rollout_steps: None,
+        }
+    }
+}
+
+/// Where and how the run executes.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RunConfig {
+    pub backend: Backend,
+    /// Devices for data-parallel training (each minibatch is split across them).
+    pub devices: usize,
+    /// Write a checkpoint every this many iterations (and always at the end).
+    pub checkpoint_every: usize,
+    /// Stop after this many iterations in all (tiny runs, tests); `None` = all epochs.
+    pub max_iterations: Option<usize>,
+}
+
+impl Default for RunConfig {
+    fn default() -> Self {
+        Self {
+            backend: Backend::NdArray,
+            devices: 1,
+            checkpoint_every: 1,
+            max_iterations: None,
+        }
+    }
+}
+
+impl TrainConfig {
+    /// Reads and validates a run file; a relative reference checkpoint is resolved against the
+    /// file's folder.
+    pub fn from_toml_file(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let mut config = Self::from_toml_str(&text, &path.display().to_string())?;
+        if let Some(reference) = config.reference.as_mut()
+            && reference.checkpoint.is_relative()
+        {
+            let base = path.parent().unwrap_or(Path::new("."));
+            reference.checkpoint = base.join(&reference.checkpoint);
+        }
+        Ok(config)
+    }
+
+    pub fn from_toml_str(text: &str, source_name: &str) -> Result<Self> {
+        let config: Self = parse_toml(text, source_name)?;
+        config.validate(source_name)?;
+        Ok(config)
+    }
+
+    /// Checks every range a run depends on; errors name the field.
+    pub fn validate(&self, source_name: &str) -> Result<()> {
+        let fail = |field: &str, message: &str| {
+            Err(Error::invalid(
+                source_name,
+                format!("field `{field}`"),
+                message.to_string(),
+            ))
+        };
+        let positive = |x: f64| x.is_finite() && x > 0.0;
+        let unit = |x: f64| x.is_finite() && (0.0..=1.0).contains(&x);
+        let o = &self.optimizer;
+        let p = &self.ppo;
+        if !unit(self.alpha) {
+            return fail("alpha", "expected a share in [0, 1]");
+        }
+        if !(self.lambda.is_finite() && self.lambda >= 0.0) {
+            return fail("lambda", "expected a finite weight >= 0");
+        }
+        if !positive(o.learning_rate) {
+            return fail("optimizer.learning_rate", "expected a finite value > 0");
+        }
+        if !(o.decay.is_finite() && o.decay > 0.0 && o.decay <= 1.0) {
+            return fail("optimizer.decay", "expected a factor in (0, 1]");
+        }
+        if o.epochs == 0 || o.decay_every_epochs == 0 {
+            return fail(
+                "optimizer.epochs",
+                "epochs and decay_every_epochs must be >= 1",
+            );
+        }
+        if !(o.weight_decay.is_finite() && o.weight_decay >= 0.0) {
+            return fail("optimizer.weight_decay", "expected a finite value >= 0");
+        }
+        if !positive(o.grad_clip_norm) {
+            return fail("optimizer.grad_clip_norm", "expected a finite norm > 0");
+        }
+        if o.epoch_scenes == Some(0) {
+            return fail("optimizer.epoch_scenes", "expected at least 1 scene");
+        }
+        if p.minibatch == 0 || p.batch == 0 || !p.batch.is_multiple_of(p.minibatch) {
+            return fail(
+                "ppo.batch",
+                "batch and minibatch must be >= 1 and batch a multiple of minibatch",
+            );
+        }
+        if p.epochs == 0 {
+            return fail("ppo.epochs", "expected at least 1");
+        }
+        if !(positive(p.clip) && p.clip < 1.0) {
+            return fail("ppo.clip", "expected a ratio clip in (0, 1)");
+        }
+        if !unit(p.gamma) || !unit(p.gae_lambda) {
+            return fail("ppo.gamma", "gamma and gae_lambda must lie in [0, 1]");
+        }
+        if !(p.value_weight.is_finite() && p.value_weight >= 0.0) {
+            return fail("ppo.value_weight", "expected a finite weight >= 0");
+        }
+        if self.imitation.minibatch == 0 {
+            return fail("imitation.minibatch", "expected at least 1");
+        }
+        if !positive(self.imitation.huber_delta) {
+            return fail(
+                "imitation.huber_delta",
+                "expected a finite threshold > 0 (m)",
+            );
+        }
+        if !positive(self.shaping.tolerance) || !self.shaping.weight.is_finite() {
+            return fail(
+                "shaping.tolerance",
+                "expected a tolerance > 0 (m/s) and a finite weight",
+            );
+        }
+        match (&self.reference, self.method.uses_reference()) {
+            (None, true) => {
+                return fail(
+                    "reference",
+                    "KL-L and KL-R need [reference] checkpoint = \"<frozen IL policy.bpk>\"",
+                );
+            }
+            (Some(r), true) if !(r.weight.is_finite() && r.weight >= 0.0) => {
+                return fail("reference.weight", "expected a finite weight >= 0");
+            }
+            _ => {}
+        }
+        if !self.method.uses_ppo() && self.alpha > 0.0 {
+            return fail(
+                "alpha",
+                "BC and IL learn from logs only: long-tail scenarios have no logs (set alpha = 0)",
+            );
+        }
+        if self.data.max_rollout_steps == Some(0) {
+            return fail("data.max_rollout_steps", "expected at least 1 step");
+        }
+        if self.run.devices == 0 || self.run.checkpoint_every == 0 {
+            return fail(
+                "run.devices",
+                "devices and checkpoint_every must be at least 1",
+            );
+        }
+        self.model.validate(source_name)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_are_the_paper_table() {
+        let c = TrainConfig::from_toml_str("method = \"RTR\"", "t").expect("parses");
+        assert_eq!(c.optimizer.learning_rate, 1e-5);
+        assert_eq!(c.optimizer.weight_decay, 1e-4);
+        assert_eq!(c.optimizer.grad_clip_norm, 1.0);
+        assert_eq!(c.optimizer.epochs, 10);
+        assert_eq!((c.ppo.batch, c.ppo.minibatch, c.ppo.epochs), (192, 32, 1));
+        assert_eq!(
+            (c.ppo.clip, c.ppo.gamma, c.ppo.gae_lambda),
+            (0.2, 0.79, 1.0)
+        );
+        assert_eq!(c.imitation.minibatch, 32);
+        // 0.2x every 3 epochs.
+        let lr = |e| c.optimizer.learning_rate_at(e);
+        assert_eq!(lr(2), 1e-5);
+        assert!((lr(3) - 2e-6).abs() < 1e-18 && (lr(9) - 8e-8).abs() < 1e-18);
+    }
+
+    #[test]
+    fn bad_fields_are_named() {
+        let err = TrainConfig::from_toml_str("method = \"RTR\"\nalpha = 1.5", "run.toml")
+            .expect_err("alpha out of range");
+        assert!(err.to_string().contains("alpha"), "{err}");
+        let err = TrainConfig::from_toml_str("method = \"RTR\"\n[ppo]\nbatch = 100", "run.toml")
+            .expect_err("batch not a multiple");
+        assert!(err.to_string().contains("ppo.batch"), "{err}");
+        let err = TrainConfig::from_toml_str("method = \"KL-R\"", "run.toml")
+            .expect_err("needs a reference");
+        assert!(err.to_string().contains("reference"), "{err}");
+        let err = TrainConfig::from_toml_str("method = \"RTR\"\nlamda = 1", "run.toml")
+            .expect_err("typo");
+        assert!(err.to_string().contains("line 2"), "{err}");
+        let err =
+            TrainConfig::from_toml_str("method = \"PPO\"", "run.toml").expect_err("unknown method");
+        assert!(err.to_string().contains("RTR"), "{err}");
+    }
+}

@@ -1,0 +1,108 @@
+//! Training curves: one CSV row per optimizer step, rewritten atomically after each step (the
+//! file is small) so it always matches the run up to its last completed step. A resumed run
+//! drops the rows past its checkpoint and continues the same file.
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+use crate::io::atomic_write;
+
+/// One optimizer step. Losses are per agent-step means (0 where a method has no such term).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CurveRow {
+    pub iteration: usize,
+    pub update: usize,
+    pub epoch: usize,
+    pub learning_rate: f64,
+    /// The total loss the step minimised.
+    pub loss: f64,
+    pub il_loss: f64,
+    pub bc_loss: f64,
+    pub policy_loss: f64,
+    pub value_loss: f64,
+    pub kl: f64,
+    /// Share of PPO ratios outside the clip range.
+    pub clip_fraction: f64,
+    /// Before clipping.
+    pub policy_grad_norm: f64,
+    pub value_grad_norm: f64,
+    /// Of the controlled agents in this iteration's PPO rollouts (0 without PPO).
+    pub collision_pct: f64,
+    pub offroad_pct: f64,
+    /// Mean PPO reward per alive agent-step.
+    pub mean_reward: f64,
+    /// Alive agent-steps in this iteration's PPO rollouts (the PPO sample count).
+    pub ppo_agent_steps: usize,
+    /// Initial states in this step's minibatch.
+    pub scenes: usize,
+    /// Seconds since the run (or the resumed run) started: the only column that differs
+    /// between an interrupted and an uninterrupted run.
+    pub elapsed_s: f64,
+}
+
+pub struct Curves {
+    path: PathBuf,
+    rows: Vec<CurveRow>,
+}
+
+impl Curves {
+    /// A new file at `path` (any existing one is replaced at the first write).
+    pub fn new(path: PathBuf) -> Self {
+        Self {
+            path,
+            rows: Vec::new(),
+        }
+    }
+
+    /// The rows of `path` up to `iteration`, to continue after a checkpoint.
+    pub fn resume(path: PathBuf, iteration: usize) -> Result<Self> {
+        let rows = if path.exists() {
+            read(&path)?
+                .into_iter()
+                .filter(|r| r.iteration < iteration)
+                .collect()
+        } else {
+            Vec::new()
+        };
+        Ok(Self { path, rows })
+    }
+
+    pub fn push(&mut self, row: CurveRow) -> Result<()> {
+        self.rows.push(row);
+        let mut writer = csv::Writer::from_writer(Vec::new());
+        for r in &self.rows {
+            writer.serialize(r).map_err(|e| {
+                Error::invalid(self.path.display().to_string(), "row", e.to_string())
+            })?;
+        }
+        let bytes = writer
+            .into_inner()
+            .map_err(|e| Error::invalid(self.path.display().to_string(), "csv", e.to_string()))?;
+        atomic_write(&self.path, &bytes)
+    }
+
+    pub fn rows(&self) -> &[CurveRow] {
+        &self.rows
+    }
+}
+
+/// Reads a curves file; errors name the line.
+pub fn read(path: &Path) -> Result<Vec<CurveRow>> {
+    let mut reader = csv::Reader::from_path(path).map_err(|e| csv_error(path, e))?;
+    reader
+        .deserialize()
+        .map(|r| r.map_err(|e| csv_error(path, e)))
+        .collect()
+}
+
+fn csv_error(path: &Path, e: csv::Error) -> Error {
+    let line = e.position().map_or(0, |p| p.line() as usize);
+    Error::Parse {
+        source_name: path.display().to_string(),
+        line,
+        column: 0,
+        message: e.to_string(),
+    }
+}

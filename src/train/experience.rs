@@ -1,0 +1,430 @@
+//! Closed-loop experience for PPO: the policy samples actions for every controlled agent (the
+//! heroes of long-tail scenes follow their scripts), and each step's log-probability and
+//! value are kept with the frames the policy saw, so the update can re-evaluate the same
+//! observations under new parameters. Rewards, early termination and advantages are computed
+//! here, per agent (factorized) and per scene (the ablation).
+//!
+//! Collection runs on the plain (non-autodiff) device with [`burn::module::Module::valid`]
+//! copies of the networks: no graph is recorded for it.
+
+use burn::prelude::*;
+use burn::tensor::{Bool, TensorData};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+use super::config::{PpoConfig, ShapingConfig};
+use super::gae::gae;
+use super::shaping::speed_shaping;
+use super::sources::Part;
+use crate::error::Result;
+use crate::model::{ActionDistribution, AgentInput, LaneInput, PolicyNetwork, ValueNetwork};
+use crate::scenario::hero_scripts;
+use crate::scene::SceneBatch;
+use crate::sim::{
+    Controls, Dynamics, Frame, MapCaches, Observation, Policy, Rollout, RolloutConfig, Scripted,
+    logged_frames, rollout,
+};
+
+/// The networks a collection runs (plain-device copies).
+pub struct CollectNetworks<'n> {
+    pub policy: &'n PolicyNetwork,
+    pub value: &'n ValueNetwork,
+    /// The frozen policy of KL-L / KL-R.
+    pub reference: Option<&'n PolicyNetwork>,
+}
+
+/// How rewards are formed.
+#[derive(Debug, Clone)]
+pub struct RewardSettings {
+    /// RL-Shaped's speed-limit term.
+    pub shaping: Option<ShapingConfig>,
+    /// KL-R: reward -= weight x KL(pi || pi_ref) per agent-step.
+    pub kl_weight: Option<f64>,
+}
+
+/// What a collection reports (for curves).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct CollectStats {
+    /// Controlled agents at the start.
+    pub agents: usize,
+    pub collided: usize,
+    pub offroad: usize,
+    /// Agent-steps alive (the PPO sample count).
+    pub agent_steps: usize,
+    /// Sum of the rewards PPO sees.
+    pub reward_sum: f64,
+}
+
+impl std::ops::AddAssign for CollectStats {
+    fn add_assign(&mut self, o: Self) {
+        self.agents += o.agents;
+        self.collided += o.collided;
+        self.offroad += o.offroad;
+        self.agent_steps += o.agent_steps;
+        self.reward_sum += o.reward_sum;
+    }
+}
+
+/// One collected part, ready for PPO updates.
+pub struct Experience {
+    pub batch: SceneBatch,
+    /// Logged history (the first `history_frames`), then the rollout's frames 1..=T.
+    pub frames: Vec<Frame>,
+    pub history_frames: usize,
+    pub steps: usize,
+    /// Per step, `[B, N, 2]` raw sampled actions.
+    pub actions: Vec<Tensor<3>>,
+    /// `[B, N, T]`.
+    pub old_log_prob: Tensor<3>,
+    /// `[B, N, T]`: the agent acted at that step (alive, not early-terminated).
+    pub alive: Tensor<3, Bool>,
+    pub advantages: Tensor<3>,
+    pub returns: Tensor<3>,
+    /// `[B, 1, T]`: scene-level counterparts (any agent alive; summed rewards and values).
+    pub scene_alive: Tensor<3, Bool>,
+    pub scene_advantages: Tensor<3>,
+    pub scene_returns: Tensor<3>,
+    /// Per step, the frozen policy's distribution (KL-L).
+    pub reference: Vec<ActionDistribution>,
+    pub stats: CollectStats,
+}
+
+impl Experience {
+    /// The frames the policy saw at step `t`.
+    pub fn frames_at(&self, t: usize) -> &[Frame] {
+        &self.frames[..self.history_frames + t]
+    }
+}
+
+/// The frames of a finished rollout: the batch's logged history, then every simulated step.
+pub fn rollout_frames(batch: &SceneBatch, out: &Rollout) -> Vec<Frame> {
+    let [b, n, t1, _] = out.poses.dims();
+    let mut frames = logged_frames(batch, batch.history_steps);
+    for k in 1..t1 {
+        frames.push(Frame {
+            poses: out.poses.clone().narrow(2, k, 1).reshape([b, n, 4]),
+            present: out.present.clone().narrow(2, k, 1).reshape([b, n]),
+        });
+    }
+    frames
+}
+
+/// Standard normal action noise from one seeded host generator per scene, so a scene samples
+/// the same actions whatever it is batched with, on however many devices, in any order (a
+/// device's global RNG could promise none of this).
+struct HostNoise {
+    /// Per scene: its generator and its number of agents.
+    scenes: Vec<(ChaCha8Rng, usize)>,
+}
+
+impl HostNoise {
+    fn new(scenes: &[&crate::scene::Scene], slots: &[usize], seed: u64) -> Self {
+        Self {
+            scenes: scenes
+                .iter()
+                .zip(slots)
+                .map(|(s, &slot)| {
+                    let seed = seed ^ (slot as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+                    (ChaCha8Rng::seed_from_u64(seed), s.agents.len())
+                })
+                .collect(),
+        }
+    }
+
+    /// `[B, N, 2]` values; padding slots get 0.
+    fn normal(&mut self, n: usize) -> Vec<f32> {
+        use rand::Rng;
+        let mut out = vec![0.0f32; self.scenes.len() * n * 2];
+        for (b, (rng, agents)) in self.scenes.iter_mut().enumerate() {
+            for v in &mut out[b * n * 2..(b * n + *agents) * 2] {
+                // Box-Muller: rand 0.9 keeps its Normal in a separate crate; two lines do.
+                let u1: f64 = 1.0 - rng.random::<f64>();
+                let u2: f64 = rng.random::<f64>();
+                *v = ((-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()) as f32;
+            }
+        }
+        out
+    }
+}
+
+/// The sampling policy: records what PPO needs at every step.
+struct Recorder<'n> {
+    nets: &'n CollectNetworks<'n>,
+    lanes: LaneInput,
+    policy_lanes: Tensor<3>,
+    value_lanes: Tensor<3>,
+    reference_lanes: Option<Tensor<3>>,
+    noise: HostNoise,
+    actions: Vec<Tensor<3>>,
+    log_probs: Vec<Tensor<2>>,
+    values: Vec<Tensor<2>>,
+    dists: Vec<ActionDistribution>,
+    reference: Vec<ActionDistribution>,
+}
+
+impl<'n> Recorder<'n> {
+    fn new(nets: &'n CollectNetworks<'n>, batch: &SceneBatch, noise: HostNoise) -> Self {
+        let lanes = LaneInput::from_batch(batch, nets.policy.config());
+        Self {
+            policy_lanes: nets.policy.encode_lanes(&lanes),
+            value_lanes: nets.value.encode_lanes(&lanes),
+            reference_lanes: nets.reference.map(|r| r.encode_lanes(&lanes)),
+            lanes,
+            nets,
+            noise,
+            actions: Vec::new(),
+            log_probs: Vec::new(),
+            values: Vec::new(),
+            dists: Vec::new(),
+            reference: Vec::new(),
+        }
+    }
+
+    fn value_of(&self, agents: &AgentInput) -> Tensor<2> {
+        self.nets
+            .value
+            .forward(agents, &self.lanes, self.value_lanes.clone())
+    }
+}
+
+impl Policy for Recorder<'_> {
+    fn act(&mut self, obs: &Observation) -> Controls {
+        let agents = AgentInput::from_frames(obs.batch, obs.frames, self.nets.policy.config());
+        let dist = self
+            .nets
+            .policy
+            .forward(&agents, &self.lanes, self.policy_lanes.clone());
+        let dims = dist.mean.dims();
+        let noise = Tensor::<3>::from_data(
+            TensorData::new(self.noise.normal(dims[1]), dims),
+            &dist.mean.device(),
+        );
+        let action = dist.mean.clone() + dist.std() * noise;
+        self.log_probs.push(dist.log_prob(action.clone()));
+        self.values.push(self.value_of(&agents));
+        if let (Some(reference), Some(lanes)) = (self.nets.reference, &self.reference_lanes) {
+            self.reference
+                .push(reference.forward(&agents, &self.lanes, lanes.clone()));
+        }
+        self.dists.push(dist);
+        self.actions.push(action.clone());
+        Controls::from_stacked(action)
+    }
+}
+
+fn host_f32<const D: usize>(t: Tensor<D>) -> Vec<f32> {
+    t.into_data()
+        .convert::<f32>()
+        .try_into_vec::<f32>()
+        .unwrap_or_default()
+}
+
+fn host_bool<const D: usize>(t: Tensor<D, Bool>) -> Vec<bool> {
+    t.into_data().try_into_vec::<bool>().unwrap_or_default()
+}
+
+/// Which agent-steps are alive: `simulated` `[B*N, T+1]` (controlled and on the road) cut after
+/// the first step that ends the agent's episode (`ends[i][t]`: the transition t -> t+1 was an
+/// infraction or a shaping termination). Row-major `[B*N][T+1]`.
+pub fn alive_steps(simulated: &[bool], ends: &[bool], agents: usize, steps: usize) -> Vec<bool> {
+    let mut alive = vec![false; agents * (steps + 1)];
+    for i in 0..agents {
+        let row = i * (steps + 1);
+        alive[row] = simulated[row];
+        for t in 0..steps {
+            alive[row + t + 1] = alive[row + t] && simulated[row + t + 1] && !ends[i * steps + t];
+        }
+    }
+    alive
+}
+
+/// Rolls `part` out with sampled actions and computes rewards, advantages and returns.
+#[allow(clippy::too_many_arguments)]
+pub fn collect(
+    part: &Part,
+    nets: &CollectNetworks,
+    device: &Device,
+    dynamics: &Dynamics,
+    caches: &mut MapCaches,
+    max_steps: Option<usize>,
+    ppo: &PpoConfig,
+    rewards: &RewardSettings,
+    seed: u64,
+) -> Result<Experience> {
+    let batch = SceneBatch::from_scenes(&part.scenes, device)?;
+    let steps = max_steps.map_or(batch.future_steps, |m| m.min(batch.future_steps));
+    let config = RolloutConfig {
+        steps: Some(steps),
+        early_termination: true,
+    };
+    let noise = HostNoise::new(&part.scenes, &part.slots, seed);
+    let mut recorder = Recorder::new(nets, &batch, noise);
+    let out = if part.is_nominal() {
+        rollout(
+            &part.scenes,
+            &batch,
+            dynamics,
+            &mut recorder,
+            caches,
+            &config,
+        )?
+    } else {
+        let mut heroes = hero_scripts(&part.scenarios, &part.scenes);
+        let mut driver = Scripted {
+            policy: &mut recorder,
+            script: &mut heroes,
+            mask: batch.agent_hero.clone(),
+        };
+        rollout(&part.scenes, &batch, dynamics, &mut driver, caches, &config)?
+    };
+    let frames = rollout_frames(&batch, &out);
+    let final_agents = AgentInput::from_frames(&batch, &frames, nets.policy.config());
+    recorder.values.push(recorder.value_of(&final_agents));
+
+    let [b, n, _, _] = out.poses.dims();
+    let agents = b * n;
+    let simulated = host_bool(out.simulated.clone());
+    let infraction = host_bool(out.collision.clone().bool_or(out.offroad.clone()));
+    let collision = host_bool(out.collision.clone());
+    let offroad = host_bool(out.offroad.clone());
+    let base_reward = host_f32(out.rewards.clone());
+    // Row-major [B*N][T(+1)] host copies of the per-step tensors.
+    let per_step = |v: &[Tensor<2>]| -> Vec<f32> {
+        let t = v.len();
+        let cols: Vec<Vec<f32>> = v.iter().map(|x| host_f32(x.clone())).collect();
+        let mut out = vec![0.0; agents * t];
+        for (k, col) in cols.iter().enumerate() {
+            for i in 0..agents {
+                out[i * t + k] = col[i];
+            }
+        }
+        out
+    };
+    let values = per_step(&recorder.values);
+
+    let mut reward: Vec<f64> = base_reward.iter().map(|&r| r as f64).collect();
+    let mut ends = infraction.clone();
+    if let Some(shaping) = &rewards.shaping {
+        let speeds = host_f32(out.poses.clone().narrow(3, 3, 1).reshape([b, n, steps + 1]));
+        let centres = host_f32(
+            out.poses
+                .clone()
+                .narrow(3, 0, 3)
+                .reshape([b, n, steps + 1, 3]),
+        );
+        let terms = speed_shaping(&part.scenes, n, steps, &speeds, &centres, shaping);
+        for (k, (bonus, end)) in terms.iter().enumerate() {
+            reward[k] += bonus;
+            ends[k] |= end;
+        }
+    }
+    if let (Some(weight), false) = (rewards.kl_weight, recorder.reference.is_empty()) {
+        let kl: Vec<Tensor<2>> = recorder
+            .dists
+            .iter()
+            .zip(&recorder.reference)
+            .map(|(p, q)| p.kl(q))
+            .collect();
+        for (r, k) in reward.iter_mut().zip(per_step(&kl)) {
+            *r -= weight * k as f64;
+        }
+    }
+    let alive = alive_steps(&simulated, &ends, agents, steps);
+
+    let mut advantages = vec![0.0f32; agents * steps];
+    let mut returns = vec![0.0f32; agents * steps];
+    let mut stats = CollectStats::default();
+    let mut scene_reward = vec![0.0; b * steps];
+    let mut scene_value = vec![0.0; b * (steps + 1)];
+    let mut scene_alive = vec![false; b * (steps + 1)];
+    for i in 0..agents {
+        let (r, v, a) = (
+            &reward[i * steps..(i + 1) * steps],
+            &values[i * (steps + 1)..(i + 1) * (steps + 1)],
+            &alive[i * (steps + 1)..(i + 1) * (steps + 1)],
+        );
+        if !a[0] {
+            continue;
+        }
+        let v64: Vec<f64> = v.iter().map(|&x| x as f64).collect();
+        let est = gae(r, &v64, a, ppo.gamma, ppo.gae_lambda);
+        let scene = i / n;
+        for t in 0..steps {
+            if a[t] {
+                advantages[i * steps + t] = est.advantages[t] as f32;
+                returns[i * steps + t] = est.returns[t] as f32;
+                stats.agent_steps += 1;
+                stats.reward_sum += r[t];
+                scene_reward[scene * steps + t] += r[t];
+            }
+        }
+        for t in 0..=steps {
+            if a[t] {
+                scene_value[scene * (steps + 1) + t] += v64[t];
+                scene_alive[scene * (steps + 1) + t] = true;
+            }
+        }
+        stats.agents += 1;
+        stats.collided += usize::from(collision[i * steps..(i + 1) * steps].iter().any(|&c| c));
+        stats.offroad += usize::from(offroad[i * steps..(i + 1) * steps].iter().any(|&c| c));
+    }
+    let mut scene_adv = vec![0.0f32; b * steps];
+    let mut scene_ret = vec![0.0f32; b * steps];
+    for s in 0..b {
+        let est = gae(
+            &scene_reward[s * steps..(s + 1) * steps],
+            &scene_value[s * (steps + 1)..(s + 1) * (steps + 1)],
+            &scene_alive[s * (steps + 1)..(s + 1) * (steps + 1)],
+            ppo.gamma,
+            ppo.gae_lambda,
+        );
+        for t in 0..steps {
+            scene_adv[s * steps + t] = est.advantages[t] as f32;
+            scene_ret[s * steps + t] = est.returns[t] as f32;
+        }
+    }
+    // Drop the last (state T) column: nobody acts there.
+    let acting = |v: &[bool], rows: usize| -> Vec<bool> {
+        (0..rows)
+            .flat_map(|i| v[i * (steps + 1)..i * (steps + 1) + steps].to_vec())
+            .collect()
+    };
+    let float = |v: Vec<f32>, rows: usize| {
+        Tensor::<3>::from_data(TensorData::new(v, [b, rows / b, steps]), device)
+    };
+    let boolean = |v: Vec<bool>, rows: usize| {
+        Tensor::<3, Bool>::from_data(TensorData::new(v, [b, rows / b, steps]), device)
+    };
+    let history_frames = batch.history_steps + 1;
+    Ok(Experience {
+        old_log_prob: Tensor::stack(recorder.log_probs, 2),
+        alive: boolean(acting(&alive, agents), agents),
+        advantages: float(advantages, agents),
+        returns: float(returns, agents),
+        scene_alive: boolean(acting(&scene_alive, b), b),
+        scene_advantages: float(scene_adv, b),
+        scene_returns: float(scene_ret, b),
+        actions: recorder.actions,
+        reference: recorder.reference,
+        frames,
+        history_frames,
+        steps,
+        batch,
+        stats,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_agent_is_dead_after_the_step_that_ends_it() {
+        // Two agents, T = 3. Agent 0 collides on transition 1 -> 2 (still "simulated" at step 2,
+        // where the rollout shows the crash); agent 1 exits the map after step 1.
+        let simulated = [true, true, true, false, true, true, false, false];
+        let ends = [false, true, false, false, false, false];
+        let alive = alive_steps(&simulated, &ends, 2, 3);
+        assert_eq!(alive, [true, true, false, false, true, true, false, false]);
+    }
+}

@@ -1,0 +1,248 @@
+//! The PPO losses as tensor ops (paper appendix "Reinforcement Learning Loss").
+//!
+//! Factorized: every agent i has its own ratio r_i = pi(a_i | s) / pi_old(a_i | s), advantage
+//! A_i and value target; the surrogate is summed over agents. Scene-level (the ablation): one
+//! joint ratio prod_i r_i per scene and step (the sum of the agents' log-ratios), the scene's
+//! summed reward and value. Both take their means over the agent-steps (scene-steps) that are
+//! alive, so early-terminated steps contribute nothing.
+
+use burn::prelude::*;
+use burn::tensor::Bool;
+
+use super::config::{PpoConfig, PpoVariant};
+use super::experience::Experience;
+use crate::model::{AgentInput, LaneInput, PolicyNetwork, ValueNetwork};
+
+/// A loss summed over masked entries, with the count it should be divided by.
+#[derive(Debug, Clone)]
+pub struct MaskedSum {
+    /// Scalar tensor (differentiable).
+    pub sum: Tensor<1>,
+    pub count: usize,
+}
+
+/// Clipped surrogate `-min(r A, clip(r, 1 - eps, 1 + eps) A)` summed over `mask`, with
+/// r = exp(new_log_prob - old_log_prob); `[B, N, T]` inputs (N = 1 for the scene-level
+/// variant). Also returns how many masked entries were clipped.
+pub fn clipped_surrogate(
+    new_log_prob: Tensor<3>,
+    old_log_prob: Tensor<3>,
+    advantages: Tensor<3>,
+    mask: Tensor<3, Bool>,
+    clip: f64,
+) -> (MaskedSum, usize) {
+    let weight = mask.clone().float();
+    // Masked entries get log-ratio 0 so no exp can overflow there.
+    let log_ratio = (new_log_prob - old_log_prob.detach()) * weight.clone();
+    let ratio = log_ratio.exp();
+    let clipped = ratio.clone().clamp(1.0 - clip, 1.0 + clip);
+    let unclipped_term = ratio.clone() * advantages.clone();
+    let clipped_term = clipped * advantages;
+    let surrogate = unclipped_term.clone().min_pair(clipped_term.clone());
+    let clipped_count = ratio
+        .sub_scalar(1.0)
+        .abs()
+        .greater_elem(clip)
+        .bool_and(mask.clone())
+        .int()
+        .sum()
+        .into_scalar::<i64>() as usize;
+    let count = mask.int().sum().into_scalar::<i64>() as usize;
+    (
+        MaskedSum {
+            sum: (surrogate * weight).sum().neg(),
+            count,
+        },
+        clipped_count,
+    )
+}
+
+/// Squared error of `values` against `returns`, summed over `mask`.
+pub fn value_loss(values: Tensor<3>, returns: Tensor<3>, mask: Tensor<3, Bool>) -> MaskedSum {
+    let count = mask.clone().int().sum().into_scalar::<i64>() as usize;
+    let error = (values - returns.detach()).powi_scalar(2) * mask.float();
+    MaskedSum {
+        sum: error.sum(),
+        count,
+    }
+}
+
+/// `[B, N, T]` -> `[B, 1, T]`: the sum over the agents in `mask` (joint log-probability or
+/// scene value).
+pub fn sum_over_agents(x: Tensor<3>, mask: Tensor<3, Bool>) -> Tensor<3> {
+    (x * mask.float()).sum_dim(1)
+}
+
+/// The PPO terms of one collected part under the current (differentiated) parameters.
+pub struct PpoTerms {
+    pub policy: MaskedSum,
+    pub value: MaskedSum,
+    /// KL(pi || pi_ref) summed over alive agent-steps (KL-L).
+    pub kl: Option<MaskedSum>,
+    pub clipped: usize,
+}
+
+/// Affine standardisation of advantages (identity unless `ppo.normalize_advantages`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AdvantageScale {
+    pub mean: f64,
+    pub std: f64,
+}
+
+impl AdvantageScale {
+    pub const IDENTITY: Self = Self {
+        mean: 0.0,
+        std: 1.0,
+    };
+}
+
+/// Re-evaluates the stored observations of `exp` with `policy` and `value` and forms the
+/// variant's clipped surrogate, value loss and (for KL-L) the KL to the stored reference.
+pub fn ppo_terms(
+    policy: &PolicyNetwork,
+    value: &ValueNetwork,
+    exp: &Experience,
+    config: &PpoConfig,
+    scale: AdvantageScale,
+    with_kl: bool,
+) -> PpoTerms {
+    let model = policy.config();
+    let lanes = LaneInput::from_batch(&exp.batch, model);
+    let policy_lanes = policy.encode_lanes(&lanes);
+    let value_lanes = value.encode_lanes(&lanes);
+    let mut log_probs = Vec::with_capacity(exp.steps);
+    let mut values = Vec::with_capacity(exp.steps);
+    let mut kls = Vec::new();
+    for t in 0..exp.steps {
+        let agents = AgentInput::from_frames(&exp.batch, exp.frames_at(t), model);
+        let dist = policy.forward(&agents, &lanes, policy_lanes.clone());
+        log_probs.push(dist.log_prob(exp.actions[t].clone()));
+        values.push(value.forward(&agents, &lanes, value_lanes.clone()));
+        if with_kl && let Some(reference) = exp.reference.get(t) {
+            kls.push(dist.kl(reference));
+        }
+    }
+    let new_log_prob = Tensor::stack::<3>(log_probs, 2);
+    let values = Tensor::stack::<3>(values, 2);
+    let standardise = |a: Tensor<3>| a.sub_scalar(scale.mean).div_scalar(scale.std.max(1e-8));
+    let (policy_loss, clipped, value_loss) = match config.variant {
+        PpoVariant::Factorized => {
+            let (surrogate, clipped) = clipped_surrogate(
+                new_log_prob,
+                exp.old_log_prob.clone(),
+                standardise(exp.advantages.clone()),
+                exp.alive.clone(),
+                config.clip,
+            );
+            let value = value_loss(values, exp.returns.clone(), exp.alive.clone());
+            (surrogate, clipped, value)
+        }
+        PpoVariant::SceneLevel => {
+            let joint_new = sum_over_agents(new_log_prob, exp.alive.clone());
+            let joint_old = sum_over_agents(exp.old_log_prob.clone(), exp.alive.clone());
+            let (surrogate, clipped) = clipped_surrogate(
+                joint_new,
+                joint_old,
+                standardise(exp.scene_advantages.clone()),
+                exp.scene_alive.clone(),
+                config.clip,
+            );
+            let scene_values = sum_over_agents(values, exp.alive.clone());
+            let value = value_loss(
+                scene_values,
+                exp.scene_returns.clone(),
+                exp.scene_alive.clone(),
+            );
+            (surrogate, clipped, value)
+        }
+    };
+    let kl = (!kls.is_empty()).then(|| {
+        let kl = Tensor::stack::<3>(kls, 2) * exp.alive.clone().float();
+        MaskedSum {
+            sum: kl.sum(),
+            count: exp.stats.agent_steps,
+        }
+    });
+    PpoTerms {
+        policy: policy_loss,
+        value: value_loss,
+        kl,
+        clipped,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use burn::tensor::TensorData;
+
+    fn device() -> Device {
+        #[allow(deprecated)]
+        Device::ndarray()
+    }
+
+    fn t3(v: &[f32], shape: [usize; 3]) -> Tensor<3> {
+        Tensor::from_data(TensorData::new(v.to_vec(), shape), &device())
+    }
+
+    fn mask(v: &[bool], shape: [usize; 3]) -> Tensor<3, Bool> {
+        Tensor::from_data(TensorData::new(v.to_vec(), shape), &device())
+    }
+
+    #[test]
+    fn factorized_surrogate_matches_a_hand_computed_example() {
+        // One scene, three agents, one step; the third agent is terminated (masked).
+        // Agent 0: r = e^0.1 = 1.105 (inside the clip), A = 2 -> min(2.210, 2.210) = 2.210.
+        // Agent 1: r = e^0.5 = 1.649 (clipped to 1.2), A = 1 -> min(1.649, 1.2) = 1.2.
+        let new = t3(&[0.1, 0.5, 9.0], [1, 3, 1]);
+        let old = t3(&[0.0, 0.0, 0.0], [1, 3, 1]);
+        let adv = t3(&[2.0, 1.0, 100.0], [1, 3, 1]);
+        let alive = mask(&[true, true, false], [1, 3, 1]);
+        let (loss, clipped) = clipped_surrogate(new, old, adv, alive, 0.2);
+        let want = -(2.0 * 0.1f64.exp() + 1.2);
+        let got = loss.sum.into_scalar::<f64>();
+        assert!((got - want).abs() < 1e-5, "{got} vs {want}");
+        assert_eq!((loss.count, clipped), (2, 1));
+
+        // Negative advantage: r = e^-0.5 = 0.607 clipped to 0.8; min(-0.607, -0.8) = -0.8.
+        let (loss, _) = clipped_surrogate(
+            t3(&[-0.5], [1, 1, 1]),
+            t3(&[0.0], [1, 1, 1]),
+            t3(&[-1.0], [1, 1, 1]),
+            mask(&[true], [1, 1, 1]),
+            0.2,
+        );
+        assert!((loss.sum.into_scalar::<f64>() - 0.8).abs() < 1e-6);
+    }
+
+    #[test]
+    fn scene_level_ratio_is_the_product_of_the_agent_ratios() {
+        let logp = t3(&[0.1, 0.2, 7.0], [1, 3, 1]);
+        let alive = mask(&[true, true, false], [1, 3, 1]);
+        let joint = sum_over_agents(logp, alive).into_scalar::<f64>();
+        assert!((joint - 0.3).abs() < 1e-6);
+    }
+
+    #[test]
+    fn masked_steps_get_no_gradient() {
+        let device = device().autodiff();
+        let new = Tensor::<3>::from_data(TensorData::new(vec![0.1f32, 0.3], [1, 1, 2]), &device)
+            .require_grad();
+        let old = Tensor::<3>::zeros([1, 1, 2], &device);
+        let adv = Tensor::<3>::ones([1, 1, 2], &device);
+        let alive =
+            Tensor::<3, Bool>::from_data(TensorData::new(vec![true, false], [1, 1, 2]), &device);
+        let (loss, _) = clipped_surrogate(new.clone(), old, adv, alive, 0.2);
+        let grads = loss.sum.backward();
+        let g: Vec<f32> = new
+            .grad(&grads)
+            .expect("gradient")
+            .into_data()
+            .convert::<f32>()
+            .try_into_vec()
+            .expect("f32");
+        // d(-r A)/d logp = -r at the live step; exactly 0 at the terminated one.
+        assert!((g[0] + 0.1f32.exp()).abs() < 1e-5, "{g:?}");
+        assert_eq!(g[1], 0.0);
+    }
+}

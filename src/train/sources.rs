@@ -1,0 +1,166 @@
+//! Initial states for training: the nominal real A9 scenes (training split) and the long-tail
+//! training scenarios, mixed as rho_0 = (1 - alpha) rho_D + alpha rho_S (paper section 3.2).
+//!
+//! A draw of K initial states becomes [`Part`]s: scenes that can share one tensor batch (same
+//! kind, same window), since long-tail families run longer than the nominal 6 s window.
+
+use std::path::Path;
+
+use rand::Rng;
+
+use super::config::DataConfig;
+use crate::data::{A9Dataset, SceneConfig, TrafficStatistics};
+use crate::error::{Error, Result};
+use crate::scenario::{
+    ConcreteScenario, GenerateConfig, ScenarioSet, builtin_families, generate_sets, load_families,
+};
+use crate::scene::Scene;
+
+/// Everything a run samples its initial states from.
+pub struct TrainingData {
+    /// Real A9 training scenes (they have logs: imitation targets).
+    pub nominal: Vec<Scene>,
+    /// Long-tail training scenarios and their scenes (no logs of the policy's agents beyond the
+    /// reference IDM run, so no imitation loss is taken on them).
+    pub longtail: Vec<(ConcreteScenario, Scene)>,
+}
+
+/// One initial state: an index into [`TrainingData::nominal`] or [`TrainingData::longtail`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum InitialState {
+    Nominal(usize),
+    LongTail(usize),
+}
+
+/// Scenes that are batched and rolled out together.
+pub struct Part<'a> {
+    pub scenes: Vec<&'a Scene>,
+    /// The scenarios behind long-tail scenes (their hero scripts); empty for nominal parts.
+    pub scenarios: Vec<&'a ConcreteScenario>,
+    /// Each scene's position in its draw: seeds its action noise, so a scene samples the same
+    /// actions however the draw is batched or split across devices.
+    pub slots: Vec<usize>,
+}
+
+impl Part<'_> {
+    pub fn is_nominal(&self) -> bool {
+        self.scenarios.is_empty()
+    }
+}
+
+impl TrainingData {
+    /// Loads the shipped A9 training split and the long-tail training scenarios as `config`
+    /// says (a folder from `rtr scenarios generate`, or generated now). `with_longtail = false`
+    /// skips the long-tail set (BC and IL never use it).
+    pub fn load(dataset: &A9Dataset, config: &DataConfig, with_longtail: bool) -> Result<Self> {
+        let mut nominal = dataset.scenes(&SceneConfig::default())?.train;
+        if let Some(limit) = config.nominal_limit {
+            nominal.truncate(limit);
+        }
+        if nominal.is_empty() {
+            return Err(Error::InvalidArgument(
+                "data.nominal_limit leaves no nominal training scene".into(),
+            ));
+        }
+        let mut scenarios = if !with_longtail {
+            Vec::new()
+        } else if let Some(dir) = &config.longtail_dir {
+            load_scenario_dir(&dir.join(ScenarioSet::Train.name()))?
+        } else {
+            let families = load_families(&builtin_families())?;
+            let stats = TrafficStatistics::from_recording(&dataset.recording, &dataset.map, 1.0);
+            let generate = GenerateConfig {
+                in_distribution: config.longtail_generate,
+                ood: 0,
+                ..GenerateConfig::default()
+            };
+            generate_sets(&families, &stats, &generate)?.train
+        };
+        if let Some(limit) = config.longtail_limit {
+            scenarios.truncate(limit);
+        }
+        if with_longtail && scenarios.is_empty() {
+            return Err(Error::InvalidArgument(
+                "alpha > 0 needs long-tail training scenarios, but none were loaded".into(),
+            ));
+        }
+        let longtail = scenarios
+            .into_iter()
+            .map(|s| s.to_scene().map(|scene| (s, scene)))
+            .collect::<Result<Vec<_>>>()?;
+        Ok(Self { nominal, longtail })
+    }
+
+    /// `count` i.i.d. initial states: long-tail with probability `alpha`, each set uniform.
+    pub fn sample(&self, rng: &mut impl Rng, count: usize, alpha: f64) -> Vec<InitialState> {
+        (0..count)
+            .map(|_| {
+                if !self.longtail.is_empty() && rng.random::<f64>() < alpha {
+                    InitialState::LongTail(rng.random_range(0..self.longtail.len()))
+                } else {
+                    InitialState::Nominal(rng.random_range(0..self.nominal.len()))
+                }
+            })
+            .collect()
+    }
+
+    /// Groups `states` into batchable parts (nominal first, then long-tail by window length),
+    /// keeping the draw order inside each part.
+    pub fn parts(&self, states: &[InitialState]) -> Vec<Part<'_>> {
+        let mut nominal = Part {
+            scenes: Vec::new(),
+            scenarios: Vec::new(),
+            slots: Vec::new(),
+        };
+        let mut longtail: Vec<(usize, Part)> = Vec::new();
+        for (slot, state) in states.iter().enumerate() {
+            match *state {
+                InitialState::Nominal(i) => {
+                    nominal.scenes.push(&self.nominal[i]);
+                    nominal.slots.push(slot);
+                }
+                InitialState::LongTail(i) => {
+                    let (scenario, scene) = &self.longtail[i];
+                    let steps = scene.steps();
+                    let group = match longtail.iter().position(|(s, _)| *s == steps) {
+                        Some(group) => group,
+                        None => {
+                            longtail.push((
+                                steps,
+                                Part {
+                                    scenes: Vec::new(),
+                                    scenarios: Vec::new(),
+                                    slots: Vec::new(),
+                                },
+                            ));
+                            longtail.len() - 1
+                        }
+                    };
+                    let part = &mut longtail[group].1;
+                    part.scenes.push(scene);
+                    part.scenarios.push(scenario);
+                    part.slots.push(slot);
+                }
+            }
+        }
+        longtail.sort_by_key(|(steps, _)| *steps);
+        std::iter::once(nominal)
+            .filter(|p| !p.scenes.is_empty())
+            .chain(longtail.into_iter().map(|(_, p)| p))
+            .collect()
+    }
+}
+
+/// Every `*.json` scenario in `dir`, in file-name order.
+fn load_scenario_dir(dir: &Path) -> Result<Vec<ConcreteScenario>> {
+    let mut paths: Vec<_> = std::fs::read_dir(dir)
+        .map_err(|e| Error::io(dir, e))?
+        .filter_map(|entry| entry.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "json"))
+        .collect();
+    paths.sort();
+    paths
+        .iter()
+        .map(|p| ConcreteScenario::from_json_file(p))
+        .collect()
+}

@@ -1,0 +1,783 @@
+//! The training loop shared by every method (paper Algorithm 1 and its baselines).
+//!
+//! One *iteration* draws initial states from (1 - alpha) nominal + alpha long-tail with its own
+//! seed, so a resumed run draws exactly what an uninterrupted one would:
+//! - PPO methods collect `ppo.batch` closed-loop rollouts with sampled actions (old policy),
+//!   then take one AdamW step per minibatch of `ppo.minibatch` initial states (for
+//!   `ppo.epochs` passes). Each step's loss is the method's: RL / RL-Shaped: L_RL;
+//!   BC+RL: L_BC + lambda L_RL; RTR: L_IL + lambda L_RL, where L_IL rolls the minibatch's
+//!   nominal scenes out again with the current parameters (mean action) and backpropagates
+//!   through time; KL-L: lambda L_RL + w KL(pi || pi_ref); KL-R: lambda L_RL with -w KL in
+//!   the reward. L_RL = L_policy + c L_value (the value network has its own parameters and
+//!   optimizer, so the policy loss never reaches it).
+//! - BC and IL take one step per `imitation.minibatch` nominal initial states.
+//!
+//! An *epoch* is as many initial states as `optimizer.epoch_scenes` (default: the nominal
+//! training set); the learning rate decays per epoch. With several devices every minibatch is
+//! split across them (data parallel): each computes its share's gradient on a fork of the
+//! networks, and the sums are added on the first device before the step.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use burn::module::Module;
+use burn::optim::{AdamWConfig, GradientsParams, ModuleOptimizer};
+use burn::prelude::*;
+use indicatif::ProgressBar;
+use rand::SeedableRng;
+use rand::seq::SliceRandom;
+use rand_chacha::ChaCha8Rng;
+
+use super::checkpoint::{self, LoopState};
+use super::config::{Method, PpoVariant, TrainConfig};
+use super::curves::{CurveRow, Curves};
+use super::experience::{CollectNetworks, CollectStats, Experience, RewardSettings, collect};
+use super::gradients::{clip_global_norm, sum_on_device};
+use super::imitation::{BcLabels, behaviour_cloning, closed_loop_imitation, imitation_count};
+use super::ppo::{AdvantageScale, ppo_terms};
+use super::sources::{InitialState, Part, TrainingData};
+use crate::error::{Error, Result};
+use crate::model::{PolicyNetwork, ValueNetwork};
+use crate::scene::SceneBatch;
+use crate::sim::{Dynamics, MapCaches};
+
+/// What a finished (or stopped) run reports.
+#[derive(Debug, Clone)]
+pub struct TrainSummary {
+    pub iterations: usize,
+    pub updates: usize,
+    pub checkpoint: PathBuf,
+    pub last: Option<CurveRow>,
+}
+
+/// A seed for stream `stream` of iteration `iteration` (SplitMix64 of the three).
+fn stream_seed(seed: u64, iteration: usize, stream: u64) -> u64 {
+    let mut z = seed
+        ^ (iteration as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        ^ stream.wrapping_mul(0xD1B5_4A32_D192_ED03);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// Serialises seeding and initialisation through the devices' global RNG within a process.
+static DEVICE_RNG: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+/// Touches every parameter, so lazily initialised ones draw their values now.
+struct Materialise;
+
+impl burn::module::ModuleVisitor for Materialise {
+    fn visit_float<const D: usize>(&mut self, param: &burn::module::Param<Tensor<D>>) {
+        let _ = param.val();
+    }
+}
+
+/// One part of a minibatch as one device sees it.
+struct Work<'a> {
+    part: Part<'a>,
+    experience: Option<Experience>,
+    labels: Option<BcLabels>,
+}
+
+/// Per-device results of one gradient computation.
+struct ShardGradients {
+    policy: GradientsParams,
+    value: Option<GradientsParams>,
+}
+
+/// Host values of the loss terms (already divided by their counts).
+#[derive(Debug, Clone, Copy, Default)]
+struct TermValues {
+    total: f64,
+    il: f64,
+    bc: f64,
+    policy: f64,
+    value: f64,
+    kl: f64,
+    clipped: usize,
+}
+
+impl std::ops::AddAssign for TermValues {
+    fn add_assign(&mut self, o: Self) {
+        self.total += o.total;
+        self.il += o.il;
+        self.bc += o.bc;
+        self.policy += o.policy;
+        self.value += o.value;
+        self.kl += o.kl;
+        self.clipped += o.clipped;
+    }
+}
+
+/// The counts every term is divided by, over the whole minibatch (known before any forward,
+/// so shards on different devices add up to the single-device loss).
+#[derive(Debug, Clone, Copy, Default)]
+struct Normalisers {
+    il: usize,
+    bc: usize,
+    ppo: usize,
+    kl: usize,
+}
+
+/// Splits every part's scenes into `shards` contiguous chunks; shard k gets chunk k of each.
+fn shard<'a>(parts: Vec<Part<'a>>, shards: usize) -> Vec<Vec<Part<'a>>> {
+    let mut out: Vec<Vec<Part<'a>>> = (0..shards).map(|_| Vec::new()).collect();
+    for part in parts {
+        let per = part.scenes.len().div_ceil(shards);
+        for (k, chunk) in part.scenes.chunks(per.max(1)).enumerate() {
+            let start = k * per;
+            let range = start..start + chunk.len();
+            out[k].push(Part {
+                scenes: chunk.to_vec(),
+                scenarios: if part.scenarios.is_empty() {
+                    Vec::new()
+                } else {
+                    part.scenarios[range.clone()].to_vec()
+                },
+                slots: part.slots[range].to_vec(),
+            });
+        }
+    }
+    out
+}
+
+/// Runs `f` once per (work item, cache), on scoped threads when there are several.
+fn per_device<W: Send, T: Send>(
+    work: Vec<W>,
+    caches: &mut [MapCaches],
+    f: impl Fn(usize, W, &mut MapCaches) -> Result<T> + Sync,
+) -> Result<Vec<T>> {
+    if work.len() == 1 {
+        let w = work.into_iter().next().expect("one work item");
+        return Ok(vec![f(0, w, &mut caches[0])?]);
+    }
+    std::thread::scope(|scope| {
+        let handles: Vec<_> = work
+            .into_iter()
+            .zip(caches.iter_mut())
+            .enumerate()
+            .map(|(k, (w, cache))| {
+                let f = &f;
+                scope.spawn(move || f(k, w, cache))
+            })
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| {
+                h.join().unwrap_or_else(|_| {
+                    Err(Error::InvalidArgument("a device worker panicked".into()))
+                })
+            })
+            .collect()
+    })
+}
+
+pub struct Trainer<'d> {
+    config: TrainConfig,
+    data: &'d TrainingData,
+    run_dir: PathBuf,
+    /// Autodiff devices; the first holds the master parameters.
+    devices: Vec<Device>,
+    dynamics: Dynamics,
+    policy: PolicyNetwork,
+    value: ValueNetwork,
+    policy_optimizer: ModuleOptimizer,
+    value_optimizer: ModuleOptimizer,
+    reference: Option<PolicyNetwork>,
+    caches: Vec<MapCaches>,
+    state: LoopState,
+    curves: Curves,
+    started: Instant,
+}
+
+fn optimizer(config: &TrainConfig) -> ModuleOptimizer {
+    AdamWConfig::new()
+        .with_weight_decay(config.optimizer.weight_decay as f32)
+        .init()
+}
+
+impl<'d> Trainer<'d> {
+    /// A new run in `run_dir` (which must hold no checkpoint), or with `resume` the
+    /// continuation of the run there (whose config must equal `config`).
+    pub fn new(
+        config: TrainConfig,
+        data: &'d TrainingData,
+        devices: Vec<Device>,
+        run_dir: &Path,
+        resume: bool,
+    ) -> Result<Self> {
+        let main = devices
+            .first()
+            .cloned()
+            .ok_or_else(|| Error::InvalidArgument("training needs at least one device".into()))?;
+        let config_toml = toml::to_string(&config)
+            .map_err(|e| Error::InvalidArgument(format!("config does not serialise: {e}")))?;
+        let existing = checkpoint::latest(run_dir)?;
+        let (policy, value, policy_optimizer, value_optimizer, state) = match (existing, resume) {
+            (Some(dir), true) => {
+                let c = checkpoint::load(
+                    &dir,
+                    &config.model,
+                    &main,
+                    optimizer(&config),
+                    optimizer(&config),
+                )?;
+                if c.state.config_toml != config_toml {
+                    return Err(Error::InvalidArgument(format!(
+                        "{}: the run there was made with another config; resume with the same \
+                         file or start a new --out folder",
+                        run_dir.display()
+                    )));
+                }
+                (
+                    c.policy,
+                    c.value,
+                    c.policy_optimizer,
+                    c.value_optimizer,
+                    c.state,
+                )
+            }
+            (Some(dir), false) => {
+                return Err(Error::InvalidArgument(format!(
+                    "{} already holds a run (checkpoint {}): pass --resume to continue it, or \
+                     choose another --out folder",
+                    run_dir.display(),
+                    dir.display()
+                )));
+            }
+            (None, _) => {
+                // Initialisation draws from the device's global RNG, and burn initialises
+                // parameters lazily: seed, then force every value, under a lock, so runs in
+                // parallel threads (tests) cannot interleave their draws.
+                let (policy, value) = {
+                    let _guard = DEVICE_RNG.lock().unwrap_or_else(|p| p.into_inner());
+                    main.seed(stream_seed(config.seed, 0, u64::MAX));
+                    let policy = PolicyNetwork::new(&config.model, &main);
+                    let value = ValueNetwork::new(&config.model, &main);
+                    policy.visit(&mut Materialise);
+                    value.visit(&mut Materialise);
+                    (policy, value)
+                };
+                (
+                    policy,
+                    value,
+                    optimizer(&config),
+                    optimizer(&config),
+                    LoopState {
+                        iteration: 0,
+                        updates: 0,
+                        config_toml,
+                    },
+                )
+            }
+        };
+        let reference = match (&config.reference, config.method.uses_reference()) {
+            (Some(r), true) => Some(checkpoint::load_policy(
+                &r.checkpoint,
+                &config.model,
+                &main.clone().inner(),
+            )?),
+            _ => None,
+        };
+        std::fs::create_dir_all(run_dir).map_err(|e| Error::io(run_dir, e))?;
+        crate::io::atomic_write(&run_dir.join("config.toml"), state.config_toml.as_bytes())?;
+        let curves_path = run_dir.join("curves.csv");
+        let curves = if resume {
+            Curves::resume(curves_path, state.iteration)?
+        } else {
+            Curves::new(curves_path)
+        };
+        let mut dynamics = Dynamics::bicycle(0.5);
+        dynamics.limits = config.limits;
+        Ok(Self {
+            caches: devices.iter().map(|_| MapCaches::default()).collect(),
+            data,
+            run_dir: run_dir.to_path_buf(),
+            devices,
+            dynamics,
+            policy,
+            value,
+            policy_optimizer,
+            value_optimizer,
+            reference,
+            state,
+            curves,
+            started: Instant::now(),
+            config,
+        })
+    }
+
+    pub fn policy(&self) -> &PolicyNetwork {
+        &self.policy
+    }
+
+    pub fn value(&self) -> &ValueNetwork {
+        &self.value
+    }
+
+    pub fn state(&self) -> &LoopState {
+        &self.state
+    }
+
+    pub fn curves(&self) -> &[CurveRow] {
+        self.curves.rows()
+    }
+
+    /// Initial states one iteration consumes.
+    fn scenes_per_iteration(&self) -> usize {
+        if self.config.method.uses_ppo() {
+            self.config.ppo.batch
+        } else {
+            self.config.imitation.minibatch
+        }
+    }
+
+    pub fn iterations_per_epoch(&self) -> usize {
+        let scenes = self
+            .config
+            .optimizer
+            .epoch_scenes
+            .unwrap_or(self.data.nominal.len());
+        scenes.div_ceil(self.scenes_per_iteration()).max(1)
+    }
+
+    /// Iterations of the whole run (all epochs, capped by `run.max_iterations`).
+    pub fn total_iterations(&self) -> usize {
+        let all = self.iterations_per_epoch() * self.config.optimizer.epochs;
+        self.config.run.max_iterations.map_or(all, |m| m.min(all))
+    }
+
+    /// Runs until the last iteration, checkpointing as configured; `stop_after` ends early
+    /// after that many iterations of this call (as if killed right after a checkpoint).
+    pub fn run(
+        &mut self,
+        progress: &ProgressBar,
+        stop_after: Option<usize>,
+    ) -> Result<TrainSummary> {
+        let total = self.total_iterations();
+        progress.set_length(total as u64);
+        progress.set_position(self.state.iteration as u64);
+        let mut last_checkpoint = checkpoint::latest(&self.run_dir)?;
+        let mut done_here = 0;
+        while self.state.iteration < total && stop_after.is_none_or(|s| done_here < s) {
+            let row = self.iteration(self.state.iteration, last_checkpoint.as_deref())?;
+            self.state.iteration += 1;
+            done_here += 1;
+            let finished = self.state.iteration == total;
+            if finished
+                || self
+                    .state
+                    .iteration
+                    .is_multiple_of(self.config.run.checkpoint_every)
+                || stop_after == Some(done_here)
+            {
+                last_checkpoint = Some(self.save()?);
+            }
+            progress.set_message(format!(
+                "loss {:.4} collision {:.1}%",
+                row.loss, row.collision_pct
+            ));
+            progress.inc(1);
+        }
+        let checkpoint = match last_checkpoint {
+            Some(c) => c,
+            None => self.save()?,
+        };
+        if self.state.iteration == total {
+            // The finished policy at a stable path (for `[reference]`, evaluation, models/).
+            let bytes = std::fs::read(checkpoint.join("policy.bpk"))
+                .map_err(|e| Error::io(checkpoint.join("policy.bpk"), e))?;
+            crate::io::atomic_write(&self.run_dir.join("policy.bpk"), &bytes)?;
+        }
+        Ok(TrainSummary {
+            iterations: self.state.iteration,
+            updates: self.state.updates,
+            checkpoint,
+            last: self.curves.rows().last().cloned(),
+        })
+    }
+
+    fn save(&self) -> Result<PathBuf> {
+        checkpoint::save(
+            &self.run_dir,
+            &self.policy,
+            &self.value,
+            &self.policy_optimizer,
+            &self.value_optimizer,
+            &self.state,
+        )
+    }
+
+    /// One iteration; returns its last curve row.
+    fn iteration(&mut self, i: usize, last_checkpoint: Option<&Path>) -> Result<CurveRow> {
+        let config = self.config.clone();
+        let epoch = i / self.iterations_per_epoch();
+        let lr = config.optimizer.learning_rate_at(epoch);
+        let mut rng = ChaCha8Rng::seed_from_u64(stream_seed(config.seed, i, 0));
+        {
+            // Only reparameterised IL samples (imitation.action = "sample") draw from it.
+            let _guard = DEVICE_RNG.lock().unwrap_or_else(|p| p.into_inner());
+            for d in &self.devices {
+                d.seed(stream_seed(config.seed, i, 1));
+            }
+        }
+        let data = self.data;
+        if !config.method.uses_ppo() {
+            let states = data.sample(&mut rng, config.imitation.minibatch, 0.0);
+            let work = self.prepare(data.parts(&states), None)?;
+            return self.update(i, epoch, lr, work, CollectStats::default(), last_checkpoint);
+        }
+        let states = data.sample(&mut rng, config.ppo.batch, config.alpha);
+        let minibatches: Vec<&[InitialState]> = states.chunks(config.ppo.minibatch).collect();
+        let mut collected: Vec<Vec<Vec<Work>>> = Vec::with_capacity(minibatches.len());
+        let mut stats = CollectStats::default();
+        for (m, states) in minibatches.iter().enumerate() {
+            let work = self.prepare(
+                data.parts(states),
+                Some(stream_seed(config.seed, i, 2 + m as u64)),
+            )?;
+            for shard in &work {
+                for w in shard {
+                    if let Some(e) = &w.experience {
+                        stats += e.stats;
+                    }
+                }
+            }
+            collected.push(work);
+        }
+        let mut order: Vec<usize> = (0..collected.len()).collect();
+        let mut row = None;
+        for pass in 0..config.ppo.epochs {
+            if pass > 0 {
+                order.shuffle(&mut rng);
+            }
+            for &m in &order {
+                // Later passes reuse the experience; the work is rebuilt around it.
+                let work = std::mem::take(&mut collected[m]);
+                let (r, back) = self.update_keep(i, epoch, lr, work, stats, last_checkpoint)?;
+                collected[m] = back;
+                row = Some(r);
+            }
+        }
+        row.ok_or_else(|| Error::InvalidArgument("ppo.batch produced no minibatch".into()))
+    }
+
+    /// Splits `parts` across the devices and, for PPO (`collect_seed`), collects their
+    /// experience with the current policy; builds BC labels where the method needs them.
+    fn prepare<'a>(
+        &mut self,
+        parts: Vec<Part<'a>>,
+        collect_seed: Option<u64>,
+    ) -> Result<Vec<Vec<Work<'a>>>> {
+        let config = &self.config;
+        let shards = shard(parts, self.devices.len());
+        let devices: Vec<Device> = self.devices.iter().map(|d| d.clone().inner()).collect();
+        let policy = self.policy.valid();
+        let value = self.value.valid();
+        let reference = self.reference.clone();
+        let dynamics = &self.dynamics;
+        let rewards = RewardSettings {
+            shaping: (config.method == Method::RlShaped).then(|| config.shaping.clone()),
+            kl_weight: (config.method == Method::KlReward)
+                .then(|| config.reference.as_ref().map_or(0.0, |r| r.weight)),
+        };
+        per_device(shards, &mut self.caches, |k, parts, caches| {
+            let device = &devices[k];
+            let (policy, value) = (policy.clone().fork(device), value.clone().fork(device));
+            let reference = reference.clone().map(|r| r.fork(device));
+            let nets = CollectNetworks {
+                policy: &policy,
+                value: &value,
+                reference: reference.as_ref(),
+            };
+            parts
+                .into_iter()
+                .map(|part| {
+                    let experience = match collect_seed {
+                        Some(seed) => Some(collect(
+                            &part,
+                            &nets,
+                            device,
+                            dynamics,
+                            caches,
+                            config.data.max_rollout_steps,
+                            &config.ppo,
+                            &rewards,
+                            seed,
+                        )?),
+                        None => None,
+                    };
+                    let labels = (config.method.uses_bc() && part.is_nominal()).then(|| {
+                        let n = part
+                            .scenes
+                            .iter()
+                            .map(|s| s.agents.len())
+                            .max()
+                            .unwrap_or(1);
+                        let steps = rollout_steps(&part, config.data.max_rollout_steps);
+                        BcLabels::new(&part.scenes, n.max(1), steps, &config.limits, device)
+                    });
+                    Ok(Work {
+                        part,
+                        experience,
+                        labels,
+                    })
+                })
+                .collect()
+        })
+    }
+
+    fn update(
+        &mut self,
+        i: usize,
+        epoch: usize,
+        lr: f64,
+        work: Vec<Vec<Work>>,
+        stats: CollectStats,
+        last_checkpoint: Option<&Path>,
+    ) -> Result<CurveRow> {
+        self.update_keep(i, epoch, lr, work, stats, last_checkpoint)
+            .map(|(row, _)| row)
+    }
+
+    /// One optimizer step on a minibatch; hands the work back (PPO reuses its experience).
+    fn update_keep<'a>(
+        &mut self,
+        i: usize,
+        epoch: usize,
+        lr: f64,
+        work: Vec<Vec<Work<'a>>>,
+        stats: CollectStats,
+        last_checkpoint: Option<&Path>,
+    ) -> Result<(CurveRow, Vec<Vec<Work<'a>>>)> {
+        let config = self.config.clone();
+        let method = config.method;
+        let cap = config.data.max_rollout_steps;
+        let mut norm = Normalisers::default();
+        let mut scenes = 0;
+        let mut advantages: Vec<f32> = Vec::new();
+        for w in work.iter().flatten() {
+            scenes += w.part.scenes.len();
+            if method.uses_closed_loop_il() && w.part.is_nominal() {
+                norm.il += imitation_count(&w.part.scenes, rollout_steps(&w.part, cap));
+            }
+            if let Some(labels) = &w.labels {
+                norm.bc += labels.count;
+            }
+            if let Some(e) = &w.experience {
+                let (alive, adv) = match config.ppo.variant {
+                    PpoVariant::Factorized => (e.alive.clone(), e.advantages.clone()),
+                    PpoVariant::SceneLevel => (e.scene_alive.clone(), e.scene_advantages.clone()),
+                };
+                norm.ppo += alive.clone().int().sum().into_scalar::<i64>() as usize;
+                norm.kl += e.stats.agent_steps;
+                if config.ppo.normalize_advantages {
+                    let a: Vec<f32> = adv
+                        .into_data()
+                        .convert::<f32>()
+                        .try_into_vec()
+                        .unwrap_or_default();
+                    let m: Vec<bool> = alive.into_data().try_into_vec().unwrap_or_default();
+                    advantages.extend(a.iter().zip(&m).filter(|(_, m)| **m).map(|(a, _)| *a));
+                }
+            }
+        }
+        let scale = if advantages.len() > 1 {
+            let n = advantages.len() as f64;
+            let mean = advantages.iter().map(|&a| a as f64).sum::<f64>() / n;
+            let var = advantages
+                .iter()
+                .map(|&a| (a as f64 - mean).powi(2))
+                .sum::<f64>()
+                / n;
+            AdvantageScale {
+                mean,
+                std: var.sqrt(),
+            }
+        } else {
+            AdvantageScale::IDENTITY
+        };
+        let rl_weight = match method {
+            Method::Rl | Method::RlShaped => 1.0,
+            _ => config.lambda,
+        };
+        let kl_weight = config.reference.as_ref().map_or(0.0, |r| r.weight);
+        let uses_value = method.uses_ppo();
+
+        let devices = self.devices.clone();
+        let policy = &self.policy;
+        let value = &self.value;
+        let dynamics = &self.dynamics;
+        let results = per_device(work, &mut self.caches, |k, work, caches| {
+            let device = &devices[k];
+            let (policy, value) = if k == 0 {
+                (policy.clone(), value.clone())
+            } else {
+                (policy.clone().fork(device), value.clone().fork(device))
+            };
+            let mut total = Tensor::<1>::zeros([1], device);
+            let mut terms = TermValues::default();
+            let mut add = |t: Tensor<1>, count: usize, weight: f64, slot: &mut f64| {
+                if count > 0 && weight != 0.0 {
+                    let mean = t.div_scalar(count as f64);
+                    *slot += mean.clone().into_scalar::<f64>();
+                    total = total.clone() + mean.mul_scalar(weight);
+                }
+            };
+            for w in &work {
+                let steps = rollout_steps(&w.part, cap);
+                if method.uses_closed_loop_il() && w.part.is_nominal() {
+                    let batch = match &w.experience {
+                        Some(e) => e.batch.clone(),
+                        None => SceneBatch::from_scenes(&w.part.scenes, &device.clone().inner())?,
+                    };
+                    let sum = closed_loop_imitation(
+                        &policy,
+                        &w.part.scenes,
+                        &batch,
+                        dynamics,
+                        caches,
+                        steps,
+                        &config.imitation,
+                    )?;
+                    add(sum, norm.il, 1.0, &mut terms.il);
+                }
+                if let Some(labels) = &w.labels {
+                    let batch = match &w.experience {
+                        Some(e) => e.batch.clone(),
+                        None => SceneBatch::from_scenes(&w.part.scenes, &device.clone().inner())?,
+                    };
+                    add(
+                        behaviour_cloning(&policy, &batch, labels),
+                        norm.bc,
+                        1.0,
+                        &mut terms.bc,
+                    );
+                }
+                if let Some(e) = &w.experience {
+                    let t = ppo_terms(
+                        &policy,
+                        &value,
+                        e,
+                        &config.ppo,
+                        scale,
+                        method == Method::KlLoss,
+                    );
+                    terms.clipped += t.clipped;
+                    add(t.policy.sum, norm.ppo, rl_weight, &mut terms.policy);
+                    add(
+                        t.value.sum,
+                        norm.ppo,
+                        rl_weight * config.ppo.value_weight,
+                        &mut terms.value,
+                    );
+                    if let Some(kl) = t.kl {
+                        add(kl.sum, norm.kl, kl_weight, &mut terms.kl);
+                    }
+                }
+            }
+            terms.total = total.clone().into_scalar::<f64>();
+            if !terms.total.is_finite() {
+                return Ok((None, terms, work));
+            }
+            let mut grads = total.backward();
+            let policy_grads = GradientsParams::from_module(&mut grads, &policy);
+            let value_grads = uses_value.then(|| GradientsParams::from_module(&mut grads, &value));
+            Ok((
+                Some(ShardGradients {
+                    policy: policy_grads,
+                    value: value_grads,
+                }),
+                terms,
+                work,
+            ))
+        })?;
+
+        let mut terms = TermValues::default();
+        let mut policy_parts = Vec::new();
+        let mut value_parts = Vec::new();
+        let mut returned = Vec::new();
+        let mut finite = true;
+        for (grads, t, work) in results {
+            terms += t;
+            returned.push(work);
+            match grads {
+                Some(g) => {
+                    policy_parts.push(g.policy);
+                    value_parts.extend(g.value);
+                }
+                None => finite = false,
+            }
+        }
+        let diverged = |what: &str, value: f64| Error::Diverged {
+            iteration: i,
+            update: self.state.updates,
+            what: what.to_string(),
+            value,
+            checkpoint: last_checkpoint
+                .map_or("none written yet".into(), |p| p.display().to_string()),
+        };
+        if !finite || !terms.total.is_finite() {
+            return Err(diverged("loss", terms.total));
+        }
+        let main = &self.devices[0];
+        let mut policy_grads = sum_on_device(&self.policy, policy_parts, main);
+        let policy_norm = clip_global_norm(
+            &self.policy,
+            &mut policy_grads,
+            config.optimizer.grad_clip_norm,
+        );
+        if !policy_norm.is_finite() {
+            return Err(diverged("policy gradient norm", policy_norm));
+        }
+        let mut value_norm = 0.0;
+        let value_grads = if uses_value {
+            let mut g = sum_on_device(&self.value, value_parts, main);
+            value_norm = clip_global_norm(&self.value, &mut g, config.optimizer.grad_clip_norm);
+            if !value_norm.is_finite() {
+                return Err(diverged("value gradient norm", value_norm));
+            }
+            Some(g)
+        } else {
+            None
+        };
+        self.policy = self
+            .policy_optimizer
+            .step(lr, self.policy.clone(), policy_grads);
+        if let Some(g) = value_grads {
+            self.value = self.value_optimizer.step(lr, self.value.clone(), g);
+        }
+        self.state.updates += 1;
+
+        let pct = |k: usize| 100.0 * k as f64 / stats.agents.max(1) as f64;
+        let row = CurveRow {
+            iteration: i,
+            update: self.state.updates,
+            epoch,
+            learning_rate: lr,
+            loss: terms.total,
+            il_loss: terms.il,
+            bc_loss: terms.bc,
+            policy_loss: terms.policy,
+            value_loss: terms.value,
+            kl: terms.kl,
+            clip_fraction: terms.clipped as f64 / norm.ppo.max(1) as f64,
+            policy_grad_norm: policy_norm,
+            value_grad_norm: value_norm,
+            collision_pct: pct(stats.collided),
+            offroad_pct: pct(stats.offroad),
+            mean_reward: stats.reward_sum / stats.agent_steps.max(1) as f64,
+            ppo_agent_steps: stats.agent_steps,
+            scenes,
+            elapsed_s: self.started.elapsed().as_secs_f64(),
+        };
+        self.curves.push(row.clone())?;
+        Ok((row, returned))
+    }
+}
+
+/// Steps a part is rolled out for.
+fn rollout_steps(part: &Part, cap: Option<usize>) -> usize {
+    let future = part.scenes.first().map_or(0, |s| s.future_steps);
+    cap.map_or(future, |c| c.min(future))
+}

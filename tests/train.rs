@@ -1,0 +1,339 @@
+//! Training: every method on a tiny config lowers its loss, a killed and resumed run equals an
+//! uninterrupted one, divergence stops cleanly, two devices compute the one-device step, and
+//! bad run files are named. (PPO's ratio and GAE arithmetic, early termination and clipping
+//! are unit tests beside the code in `src/train/`; BPTT against finite differences is in
+//! `tests/gradients.rs`.)
+
+mod common;
+
+use std::path::Path;
+use std::sync::OnceLock;
+
+use burn::module::Module;
+use indicatif::ProgressBar;
+use rtr::train::session::devices;
+use rtr::train::{CurveRow, DataConfig, TrainConfig, Trainer, TrainingData};
+
+/// One nominal scene (so every minibatch holds the same initial states) and three long-tail
+/// scenarios, shared by every test of this binary.
+fn data() -> &'static TrainingData {
+    static DATA: OnceLock<TrainingData> = OnceLock::new();
+    DATA.get_or_init(|| {
+        let config = DataConfig {
+            nominal_limit: Some(1),
+            longtail_generate: 26,
+            longtail_limit: Some(3),
+            ..DataConfig::default()
+        };
+        TrainingData::load(common::a9(), &config, true).expect("training data")
+    })
+}
+
+/// A tiny run of `method`; `extra` is appended TOML (top-level keys first).
+fn tiny(method: &str, top: &str, sections: &str) -> TrainConfig {
+    let text = format!(
+        r#"
+method = "{method}"
+seed = 11
+{top}
+
+[optimizer]
+learning_rate = 1e-3
+epochs = 1
+epoch_scenes = 2
+
+[ppo]
+batch = 2
+minibatch = 2
+
+[imitation]
+minibatch = 2
+
+[data]
+max_rollout_steps = 4
+
+[model]
+hidden = 16
+lane_layers = 1
+interaction_rounds = 1
+history_blocks = 1
+head_hidden = [16]
+{sections}
+"#
+    );
+    TrainConfig::from_toml_str(&text, "tiny.toml").expect("tiny config")
+}
+
+fn train(
+    config: TrainConfig,
+    dir: &Path,
+    resume: bool,
+    stop_after: Option<usize>,
+) -> Vec<CurveRow> {
+    let devices = devices(&config).expect("devices");
+    let mut trainer = Trainer::new(config, data(), devices, dir, resume).expect("trainer");
+    trainer
+        .run(&ProgressBar::hidden(), stop_after)
+        .expect("training runs");
+    trainer.curves().to_vec()
+}
+
+/// Trains `method` on the same initial states three times and checks the loss fell.
+fn loss_falls(method: &str, top: &str, sections: &str) {
+    loss_falls_with(method, top, sections, |_| {});
+}
+
+fn loss_falls_with(method: &str, top: &str, sections: &str, edit: impl Fn(&mut TrainConfig)) {
+    let dir = tempfile::tempdir().expect("temp dir");
+    // BC and IL take one step per iteration; PPO methods three passes over one collection.
+    let mut config = if matches!(method, "BC" | "IL") {
+        let mut c = tiny(method, top, sections);
+        c.optimizer.epochs = 3;
+        c
+    } else {
+        let mut c = tiny(method, top, sections);
+        c.ppo.epochs = 3;
+        c
+    };
+    edit(&mut config);
+    let rows = train(config, dir.path(), false, None);
+    assert_eq!(rows.len(), 3, "{method}: three optimizer steps");
+    let (first, last) = (rows[0].loss, rows[2].loss);
+    assert!(
+        last < first,
+        "{method}: loss {first} -> {} -> {last} did not fall",
+        rows[1].loss
+    );
+}
+
+#[test]
+fn bc_lowers_its_loss() {
+    loss_falls("BC", "", "");
+}
+
+#[test]
+fn il_lowers_its_loss() {
+    loss_falls("IL", "", "");
+}
+
+#[test]
+fn rl_lowers_its_loss() {
+    loss_falls("RL", "alpha = 0.5", "");
+}
+
+#[test]
+fn rl_shaped_lowers_its_loss() {
+    loss_falls("RL-Shaped", "alpha = 0.5", "");
+}
+
+#[test]
+fn bc_plus_rl_lowers_its_loss() {
+    loss_falls("BC+RL", "", "");
+}
+
+#[test]
+fn rtr_lowers_its_loss() {
+    loss_falls("RTR", "alpha = 0.5", "");
+}
+
+#[test]
+fn rtr_scene_level_ppo_lowers_its_loss() {
+    loss_falls_with("RTR", "alpha = 0.5", "", |c| {
+        c.ppo.variant = rtr::train::PpoVariant::SceneLevel
+    });
+}
+
+/// A frozen policy of the tiny config (another initialisation than the trained one).
+fn reference_policy(dir: &Path) -> String {
+    let config = tiny("IL", "", "");
+    #[allow(deprecated)]
+    let device = burn::prelude::Device::ndarray();
+    device.seed(99);
+    let path = dir.join("reference.bpk");
+    rtr::model::PolicyNetwork::new(&config.model, &device)
+        .save_file(&path)
+        .expect("save reference");
+    path.display().to_string()
+}
+
+#[test]
+fn kl_loss_and_kl_reward_lower_their_loss() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let reference = reference_policy(dir.path());
+    let section = format!("[reference]\ncheckpoint = \"{reference}\"\nweight = 1.0");
+    loss_falls("KL-L", "alpha = 0.5", &section);
+    loss_falls("KL-R", "alpha = 0.5", &section);
+}
+
+fn without_time(rows: &[CurveRow]) -> Vec<CurveRow> {
+    rows.iter()
+        .map(|r| CurveRow {
+            elapsed_s: 0.0,
+            ..r.clone()
+        })
+        .collect()
+}
+
+/// Every parameter value of the run's latest policy checkpoint, in module order.
+fn policy_values(run: &Path, config: &TrainConfig) -> Vec<f32> {
+    struct Values(Vec<f32>);
+    impl burn::module::ModuleVisitor for Values {
+        fn visit_float<const D: usize>(
+            &mut self,
+            p: &burn::module::Param<burn::prelude::Tensor<D>>,
+        ) {
+            let v: Vec<f32> = p
+                .val()
+                .into_data()
+                .convert::<f32>()
+                .try_into_vec()
+                .expect("f32");
+            self.0.extend(v);
+        }
+    }
+    let dir = rtr::train::checkpoint::latest(run)
+        .expect("pointer")
+        .expect("a checkpoint");
+    #[allow(deprecated)]
+    let device = burn::prelude::Device::ndarray();
+    let policy =
+        rtr::train::load_policy(&dir.join("policy.bpk"), &config.model, &device).expect("loads");
+    let mut values = Values(Vec::new());
+    policy.visit(&mut values);
+    values.0
+}
+
+#[test]
+fn a_killed_and_resumed_run_equals_an_uninterrupted_one() {
+    let config = || {
+        let mut c = tiny("RTR", "alpha = 0.5", "");
+        c.optimizer.epochs = 3;
+        c.ppo.minibatch = 1;
+        c
+    };
+    let whole = tempfile::tempdir().expect("temp dir");
+    let rows = train(config(), whole.path(), false, None);
+    assert_eq!(rows.len(), 6, "3 iterations x 2 minibatches");
+
+    let parts = tempfile::tempdir().expect("temp dir");
+    let first = train(config(), parts.path(), false, Some(1));
+    assert_eq!(first.len(), 2);
+    // Starting again without --resume would overwrite the run: refused.
+    let devices = devices(&config()).expect("devices");
+    let err = Trainer::new(config(), data(), devices, parts.path(), false)
+        .err()
+        .expect("refused");
+    assert!(err.to_string().contains("--resume"), "{err}");
+    let resumed = train(config(), parts.path(), true, None);
+
+    assert_eq!(without_time(&resumed), without_time(&rows));
+    let on_disk = rtr::train::curves::read(&parts.path().join("curves.csv")).expect("csv");
+    assert_eq!(without_time(&on_disk), without_time(&rows));
+    let (resumed, whole) = (
+        policy_values(parts.path(), &config()),
+        policy_values(whole.path(), &config()),
+    );
+    assert!(
+        resumed.len() > 1000 && resumed == whole,
+        "parameters differ"
+    );
+}
+
+#[test]
+fn a_diverging_run_stops_with_its_last_good_checkpoint() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    // A learning rate no network survives: the first step is finite, the parameters explode.
+    let mut config = tiny("IL", "", "");
+    config.optimizer.epochs = 5;
+    config.optimizer.learning_rate = 1e30;
+    let devices = devices(&config).expect("devices");
+    let mut trainer =
+        Trainer::new(config.clone(), data(), devices, dir.path(), false).expect("trainer");
+    let err = trainer
+        .run(&ProgressBar::hidden(), None)
+        .expect_err("diverges");
+    let text = err.to_string();
+    assert!(
+        text.contains("diverged") && text.contains("iter-"),
+        "{text}"
+    );
+    let completed = trainer.state().iteration;
+    assert!(
+        completed >= 1,
+        "at least one good step before the explosion"
+    );
+    // The last good checkpoint loads and is the last completed iteration.
+    let latest = rtr::train::checkpoint::latest(dir.path())
+        .expect("pointer")
+        .expect("a checkpoint");
+    assert!(
+        latest.ends_with(format!("iter-{completed:06}")),
+        "{}",
+        latest.display()
+    );
+    #[allow(deprecated)]
+    let device = burn::prelude::Device::ndarray();
+    rtr::train::load_policy(&latest.join("policy.bpk"), &config.model, &device).expect("loads");
+}
+
+#[test]
+fn two_devices_compute_the_one_device_loss_and_gradient() {
+    let one = tempfile::tempdir().expect("temp dir");
+    let two = tempfile::tempdir().expect("temp dir");
+    let config = tiny("RTR", "alpha = 0.5", "[run]\nmax_iterations = 1");
+    let single = train(config.clone(), one.path(), false, None);
+    let mut split = config;
+    split.run.devices = 2;
+    let double = train(split, two.path(), false, None);
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-4 * a.abs().max(b.abs()).max(1e-6);
+    let (a, b) = (&single[0], &double[0]);
+    assert!(close(a.loss, b.loss), "loss {} vs {}", a.loss, b.loss);
+    assert!(close(a.il_loss, b.il_loss) && close(a.policy_loss, b.policy_loss));
+    assert!(
+        close(a.policy_grad_norm, b.policy_grad_norm),
+        "gradient norm {} vs {}",
+        a.policy_grad_norm,
+        b.policy_grad_norm
+    );
+}
+
+#[test]
+fn run_files_with_mistakes_are_named() {
+    let err = TrainConfig::from_toml_str("method = \"RTR\"\n[ppo]\ngama = 0.9\n", "bad.toml")
+        .expect_err("typo");
+    let text = err.to_string();
+    assert!(
+        text.contains("bad.toml") && text.contains("line 3") && text.contains("gama"),
+        "{text}"
+    );
+    let err = TrainConfig::from_toml_str("method = \"IL\"\nalpha = 0.3\n", "il.toml")
+        .expect_err("IL has no long-tail logs");
+    assert!(err.to_string().contains("alpha"), "{err}");
+}
+
+#[test]
+fn every_shipped_experiment_file_is_a_valid_run() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments");
+    let mut methods = Vec::new();
+    for group in std::fs::read_dir(&root).expect("experiments/") {
+        let group = group.expect("entry").path();
+        if !group.is_dir() {
+            continue;
+        }
+        for file in std::fs::read_dir(&group).expect("group") {
+            let path = file.expect("entry").path();
+            if path.extension().is_some_and(|e| e == "toml") {
+                let config = TrainConfig::from_toml_file(&path)
+                    .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+                methods.push(config.method);
+            }
+        }
+    }
+    for method in rtr::train::Method::ALL {
+        assert!(
+            methods.contains(&method),
+            "no experiment trains {}",
+            method.name()
+        );
+    }
+}
