@@ -204,3 +204,35 @@ fn model_info_counts_parameters_and_rejects_bad_configs() {
     let err = String::from_utf8_lossy(&bad.stderr);
     assert!(!bad.status.success() && err.contains("line 1"), "{err}");
 }
+
+#[test]
+fn train_names_the_bad_run_file_and_the_missing_reference() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let bad = dir.path().join("bad.toml");
+    std::fs::write(&bad, "method = \"RTR\"\n[ppo]\nclip = 1.5\n").expect("write");
+    let out = rtr(&["train", "--config", bad.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("bad.toml") && err.contains("ppo.clip"),
+        "{err}"
+    );
+
+    let kl = dir.path().join("kl.toml");
+    std::fs::write(
+        &kl,
+        "method = \"KL-L\"\n[reference]\ncheckpoint = \"nowhere/il.bpk\"\n",
+    )
+    .expect("write");
+    let out = rtr(&[
+        "train",
+        "--config",
+        kl.to_str().unwrap(),
+        "--out",
+        dir.path().join("run").to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("nowhere/il.bpk"),
+        "{err}"
+    );
+}
