@@ -116,7 +116,7 @@ fn run(args: Args) -> rtr::Result<()> {
     let count = |flags: Tensor<3, burn::tensor::Bool>| flags.int().sum().into_scalar::<i64>();
     println!(
         "untrained policy network ({} parameters) drove {} test scenes for {} steps in {:.1} s: \
-         Huber imitation loss {:.2}, {} collisions, {} off-road (training is issue #6)",
+         Huber imitation loss {:.2}, {} collisions, {} off-road (train with `rtr train --config experiments/main/rtr.toml`)",
         network.num_params(),
         first.len(),
         driven.steps,
@@ -151,7 +151,8 @@ fn run(args: Args) -> rtr::Result<()> {
     long_tail(&dataset, &args)?;
 
     println!(
-        "\nnot yet built (open issues): BC/IL/RL/RTR training (#6), evaluation table (#7), sim-to-real (#8).\n\
+        "\ntraining: `cargo run --release -- train --config experiments/main/<method>.toml`\n\
+         not yet built (open issues): evaluation table and training in this demo (#7), sim-to-real (#8).\n\
          done in {:.1} s",
         clock.elapsed().as_secs_f64()
     );
