@@ -6,8 +6,9 @@
 //! measures their infractions, lets the (untrained, paper-size) policy network drive the same
 //! scenes in closed loop, draws a scene, then generates one long-tail scenario per family
 //! (A9 background traffic, scripted heroes, validated) and measures how often the IDM
-//! baseline collides in them. Training (BC, IL, RL, RTR) and the paper's evaluation table are
-//! not built yet (open issues); this demo says so instead of pretending.
+//! baseline collides in them. Training runs through `rtr train` (not yet in this demo); the
+//! paper's evaluation table is not built yet (open issue); this demo says so instead of
+//! pretending.
 
 use std::path::PathBuf;
 use std::time::Instant;
