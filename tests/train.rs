@@ -282,9 +282,14 @@ fn two_devices_compute_the_one_device_loss_and_gradient() {
     let two = tempfile::tempdir().expect("temp dir");
     let config = tiny("RTR", "alpha = 0.5", "[run]\nmax_iterations = 1");
     let single = train(config.clone(), one.path(), false, None);
-    let mut split = config;
+    let mut split = config.clone();
     split.run.devices = 2;
     let double = train(split, two.path(), false, None);
+    // More devices than scenes: the idle ones are left out, the step is the same.
+    let many = tempfile::tempdir().expect("temp dir");
+    let mut wide = config;
+    wide.run.devices = 5;
+    let spread = train(wide, many.path(), false, None);
     let close = |a: f64, b: f64| (a - b).abs() <= 1e-4 * a.abs().max(b.abs()).max(1e-6);
     let (a, b) = (&single[0], &double[0]);
     assert!(close(a.loss, b.loss), "loss {} vs {}", a.loss, b.loss);
@@ -295,6 +300,8 @@ fn two_devices_compute_the_one_device_loss_and_gradient() {
         a.policy_grad_norm,
         b.policy_grad_norm
     );
+    let c = &spread[0];
+    assert!(close(a.loss, c.loss) && close(a.policy_grad_norm, c.policy_grad_norm));
 }
 
 #[test]

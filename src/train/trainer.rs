@@ -120,6 +120,7 @@ struct Normalisers {
 }
 
 /// Splits every part's scenes into `shards` contiguous chunks; shard k gets chunk k of each.
+/// Shards left empty (more devices than scenes) are dropped, so no device gets no work.
 fn shard<'a>(parts: Vec<Part<'a>>, shards: usize) -> Vec<Vec<Part<'a>>> {
     let mut out: Vec<Vec<Part<'a>>> = (0..shards).map(|_| Vec::new()).collect();
     for part in parts {
@@ -138,6 +139,7 @@ fn shard<'a>(parts: Vec<Part<'a>>, shards: usize) -> Vec<Vec<Part<'a>>> {
             });
         }
     }
+    out.retain(|parts| !parts.is_empty());
     out
 }
 
@@ -425,7 +427,9 @@ impl<'d> Trainer<'d> {
         if !config.method.uses_ppo() {
             let states = data.sample(&mut rng, config.imitation.minibatch, 0.0);
             let work = self.prepare(data.parts(&states), None)?;
-            return self.update(i, epoch, lr, work, CollectStats::default(), last_checkpoint);
+            return self
+                .update(i, epoch, lr, work, CollectStats::default(), last_checkpoint)
+                .map(|(row, _)| row);
         }
         let states = data.sample(&mut rng, config.ppo.batch, config.alpha);
         let minibatches: Vec<&[InitialState]> = states.chunks(config.ppo.minibatch).collect();
@@ -454,7 +458,7 @@ impl<'d> Trainer<'d> {
             for &m in &order {
                 // Later passes reuse the experience; the work is rebuilt around it.
                 let work = std::mem::take(&mut collected[m]);
-                let (r, back) = self.update_keep(i, epoch, lr, work, stats, last_checkpoint)?;
+                let (r, back) = self.update(i, epoch, lr, work, stats, last_checkpoint)?;
                 collected[m] = back;
                 row = Some(r);
             }
@@ -527,21 +531,8 @@ impl<'d> Trainer<'d> {
         })
     }
 
-    fn update(
-        &mut self,
-        i: usize,
-        epoch: usize,
-        lr: f64,
-        work: Vec<Vec<Work>>,
-        stats: CollectStats,
-        last_checkpoint: Option<&Path>,
-    ) -> Result<CurveRow> {
-        self.update_keep(i, epoch, lr, work, stats, last_checkpoint)
-            .map(|(row, _)| row)
-    }
-
     /// One optimizer step on a minibatch; hands the work back (PPO reuses its experience).
-    fn update_keep<'a>(
+    fn update<'a>(
         &mut self,
         i: usize,
         epoch: usize,
