@@ -1,12 +1,20 @@
 //! The kinematic bicycle model (paper appendix) as burn tensor ops, with a list of composable
-//! physics terms on top, stepped by forward Euler at dt = 0.5 s.
+//! physics terms on top.
 //!
 //!   x' = v cos(theta),  y' = v sin(theta),  theta' = v / L tan(phi),  v' = u
 //!
 //! Every operation is differentiable, so imitation gradients flow through an unrolled
-//! rollout. Terms (drag, actuator lag, understeer, ...) change the controls before the
-//! kinematics and/or the time derivative after it, and may keep extra state channels; the
-//! rollout never needs to know which terms are present.
+//! rollout and sim-to-real can fit the terms' parameters by gradient descent. A term acts in
+//! one or both of two places:
+//! - **actuation**, once per control step: what the vehicle applies given the command (lags,
+//!   dead time, rate limits), with memory channels carried in [`VehicleState::aux`]. These are
+//!   discretised exactly for a command held over the step, so they stay right at any dt;
+//! - **kinematics**, at every integrator evaluation: changes to the time derivative (drag,
+//!   understeer, sideslip).
+//!
+//! The paper steps forward Euler once per dt = 0.5 s ([`Dynamics::bicycle`]); sim-to-real
+//! integrates with the midpoint rule and substeps, so integration error is not mistaken for
+//! missing physics.
 
 use std::fmt::Debug;
 
@@ -24,15 +32,12 @@ pub struct Derivative {
     pub speed: Tensor<2>,
 }
 
-/// What a term sees of the current step.
+/// What a term sees when it changes the time derivative.
 pub struct TermInput<'a> {
     pub state: &'a VehicleState,
-    /// Controls after limits and after the terms before this one.
+    /// The controls applied over this control step (after limits and actuation terms).
     pub controls: &'a Controls,
     pub wheelbase: &'a Tensor<2>,
-    /// This term's own extra state channels.
-    pub aux: &'a [Tensor<2>],
-    pub dt: f64,
 }
 
 /// A physics term added to the bicycle model.
@@ -40,42 +45,65 @@ pub trait DynamicsTerm: Debug + Send + Sync {
     /// Short name, used in reports (e.g. `drag`).
     fn name(&self) -> &str;
 
-    /// Number of extra state channels the term keeps.
-    fn aux_channels(&self) -> usize {
+    /// Number of memory channels the term keeps between control steps.
+    fn memory_channels(&self) -> usize {
         0
     }
 
-    /// Initial values of this term's extra state channels (`aux_channels` of them).
-    fn init_aux(&self, _state: &VehicleState, _controls: &Controls) -> Vec<Tensor<2>> {
+    /// Memory at the start: `applied` is the control the vehicle is applying now (estimated
+    /// from its motion where known, else the first command); `past` the commands before the
+    /// start, newest first (may be empty).
+    fn init_memory(&self, _applied: &Controls, _past: &[Controls]) -> Vec<Tensor<2>> {
         Vec::new()
     }
 
-    /// The controls the vehicle actually applies (actuator lag, dead time, ...).
-    fn controls(&self, input: &TermInput) -> Controls {
-        input.controls.clone()
+    /// Once per control step: the controls passed on (held over the step) and the new
+    /// memory, given the incoming controls and this term's memory.
+    fn actuate(
+        &self,
+        controls: Controls,
+        _memory: &[Tensor<2>],
+        _dt: f64,
+    ) -> (Controls, Vec<Tensor<2>>) {
+        (controls, Vec::new())
     }
 
-    /// Changes to the time derivative (drag, understeer, ...), and the derivative of this
-    /// term's own channels (same order as `init_aux`).
-    fn derivative(&self, d: Derivative, _input: &TermInput) -> (Derivative, Vec<Tensor<2>>) {
-        (d, Vec::new())
+    /// Changes to the time derivative.
+    fn derivative(&self, d: Derivative, _input: &TermInput) -> Derivative {
+        d
     }
+}
+
+/// How the kinematics are integrated over one control step.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Integrator {
+    /// Forward Euler (the paper).
+    Euler,
+    /// Explicit midpoint rule (second order).
+    Midpoint,
 }
 
 /// Bicycle model + limits + terms.
 #[derive(Debug)]
 pub struct Dynamics {
+    /// Control step (s): commands are held for this long.
     pub dt: f64,
-    pub limits: ActionLimits,
+    /// Smooth command limits; `None` passes commands through (recorded vehicle commands).
+    pub limits: Option<ActionLimits>,
+    pub integrator: Integrator,
+    /// Integrator steps per control step.
+    pub substeps: usize,
     terms: Vec<Box<dyn DynamicsTerm>>,
 }
 
 impl Dynamics {
-    /// The paper's model: plain kinematic bicycle at `dt`.
+    /// The paper's model: plain kinematic bicycle, one Euler step per `dt`.
     pub fn bicycle(dt: f64) -> Self {
         Self {
             dt,
-            limits: ActionLimits::default(),
+            limits: Some(ActionLimits::default()),
+            integrator: Integrator::Euler,
+            substeps: 1,
             terms: Vec::new(),
         }
     }
@@ -89,42 +117,78 @@ impl Dynamics {
         &self.terms
     }
 
-    /// Adds every term's extra channels to a fresh state.
-    pub fn init_aux(&self, mut state: VehicleState, controls: &Controls) -> VehicleState {
-        state.aux.clear();
-        let mut aux = Vec::new();
-        for term in &self.terms {
-            aux.extend(term.init_aux(&state, controls));
-        }
-        state.aux = aux;
+    /// Adds every term's memory channels to a fresh state, assuming `controls` were being
+    /// applied and commanded before the start.
+    pub fn init_aux(&self, state: VehicleState, controls: &Controls) -> VehicleState {
+        self.init_with_history(state, controls, &[])
+    }
+
+    /// As [`Dynamics::init_aux`], with the commands before the start (newest first).
+    pub fn init_with_history(
+        &self,
+        mut state: VehicleState,
+        applied: &Controls,
+        past: &[Controls],
+    ) -> VehicleState {
+        state.aux = self
+            .terms
+            .iter()
+            .flat_map(|term| term.init_memory(applied, past))
+            .collect();
         state
     }
 
-    /// One Euler step under the commanded (raw, unlimited) controls.
+    /// One control step under the commanded (raw) controls.
     pub fn step(
         &self,
         state: &VehicleState,
         command: &Controls,
         wheelbase: &Tensor<2>,
     ) -> VehicleState {
-        let mut controls = self.limits.apply(command);
-        // Each term owns a contiguous slice of the aux channels, in order.
-        let mut offsets = Vec::with_capacity(self.terms.len());
+        let mut controls = match &self.limits {
+            Some(limits) => limits.apply(command),
+            None => command.clone(),
+        };
+        // Each term owns a contiguous slice of the memory channels, in order.
+        let mut memory = Vec::with_capacity(state.aux.len());
         let mut at = 0;
         for term in &self.terms {
-            let n = term.aux_channels();
-            offsets.push(at..at + n);
+            let n = term.memory_channels();
+            let (applied, own) = term.actuate(controls, &state.aux[at..at + n], self.dt);
+            debug_assert_eq!(own.len(), n, "{} returned wrong memory", term.name());
+            controls = applied;
+            memory.extend(own);
             at += n;
         }
-        for (term, range) in self.terms.iter().zip(&offsets) {
-            controls = term.controls(&TermInput {
-                state,
-                controls: &controls,
-                wheelbase,
-                aux: &state.aux[range.clone()],
-                dt: self.dt,
-            });
+        let h = self.dt / self.substeps.max(1) as f64;
+        let mut next = VehicleState {
+            aux: Vec::new(),
+            ..state.clone()
+        };
+        for _ in 0..self.substeps.max(1) {
+            next = match self.integrator {
+                Integrator::Euler => {
+                    let d = self.derivative(&next, &controls, wheelbase);
+                    advance(&next, &d, h)
+                }
+                Integrator::Midpoint => {
+                    let d = self.derivative(&next, &controls, wheelbase);
+                    let half = advance(&next, &d, h / 2.0);
+                    let d = self.derivative(&half, &controls, wheelbase);
+                    advance(&next, &d, h)
+                }
+            };
         }
+        next.aux = memory;
+        next
+    }
+
+    fn derivative(
+        &self,
+        state: &VehicleState,
+        controls: &Controls,
+        wheelbase: &Tensor<2>,
+    ) -> Derivative {
         let (sin, cos) = (state.heading.clone().sin(), state.heading.clone().cos());
         let mut d = Derivative {
             x: state.speed.clone() * cos,
@@ -132,55 +196,25 @@ impl Dynamics {
             heading: state.speed.clone() * controls.steer.clone().tan() / wheelbase.clone(),
             speed: controls.accel.clone(),
         };
-        let mut daux = Vec::with_capacity(state.aux.len());
-        for (term, range) in self.terms.iter().zip(&offsets) {
-            let (next, own) = term.derivative(
-                d,
-                &TermInput {
-                    state,
-                    controls: &controls,
-                    wheelbase,
-                    aux: &state.aux[range.clone()],
-                    dt: self.dt,
-                },
-            );
-            d = next;
-            daux.extend(own);
+        let input = TermInput {
+            state,
+            controls,
+            wheelbase,
+        };
+        for term in &self.terms {
+            d = term.derivative(d, &input);
         }
-        let dt = self.dt;
-        VehicleState {
-            x: state.x.clone() + d.x.mul_scalar(dt),
-            y: state.y.clone() + d.y.mul_scalar(dt),
-            heading: state.heading.clone() + d.heading.mul_scalar(dt),
-            speed: state.speed.clone() + d.speed.mul_scalar(dt),
-            aux: state
-                .aux
-                .iter()
-                .zip(daux)
-                .map(|(a, da)| a.clone() + da.mul_scalar(dt))
-                .collect(),
-        }
+        d
     }
 }
 
-/// Aerodynamic and rolling resistance: v' -= c_d v^2 + c_r (for forward motion).
-#[derive(Debug, Clone)]
-pub struct Drag {
-    pub c_d: f64,
-    pub c_r: f64,
-}
-
-impl DynamicsTerm for Drag {
-    fn name(&self) -> &str {
-        "drag"
-    }
-
-    fn derivative(&self, mut d: Derivative, input: &TermInput) -> (Derivative, Vec<Tensor<2>>) {
-        let v = input.state.speed.clone();
-        let resistance = v.clone().abs() * v.mul_scalar(self.c_d)
-            + input.state.speed.clone().sign().mul_scalar(self.c_r);
-        d.speed = d.speed - resistance;
-        (d, Vec::new())
+fn advance(state: &VehicleState, d: &Derivative, h: f64) -> VehicleState {
+    VehicleState {
+        x: state.x.clone() + d.x.clone().mul_scalar(h),
+        y: state.y.clone() + d.y.clone().mul_scalar(h),
+        heading: state.heading.clone() + d.heading.clone().mul_scalar(h),
+        speed: state.speed.clone() + d.speed.clone().mul_scalar(h),
+        aux: Vec::new(),
     }
 }
 
@@ -188,6 +222,7 @@ impl DynamicsTerm for Drag {
 mod tests {
     use super::*;
     use crate::sim::state::VehicleState;
+    use crate::sim::terms::Drag;
 
     #[allow(deprecated)]
     fn device() -> Device {
@@ -238,8 +273,8 @@ mod tests {
     fn terms_compose_without_touching_the_rollout() {
         let plain = Dynamics::bicycle(0.5);
         let with_drag = Dynamics::bicycle(0.5).with_term(Box::new(Drag {
-            c_d: 0.0004,
-            c_r: 0.1,
+            c_d: scalar(0.0004),
+            c_r: scalar(0.1),
         }));
         let s = state(0.0, 30.0);
         let c = Controls {

@@ -43,6 +43,16 @@ pub fn soft_clamp_inverse(y: f64, lo: f64, hi: f64) -> f64 {
 }
 
 impl ActionLimits {
+    /// Bounds so far out that the smooth clamp is the identity for any physical control
+    /// (relative change below 1e-9), for code that needs limits where a model has none.
+    pub fn unbounded() -> Self {
+        Self {
+            accel_min: -1e6,
+            accel_max: 1e6,
+            steer_max: 1e6,
+        }
+    }
+
     pub fn apply(&self, c: &Controls) -> Controls {
         Controls {
             accel: soft_clamp(c.accel.clone(), self.accel_min, self.accel_max),

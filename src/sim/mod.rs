@@ -3,6 +3,7 @@
 //! imitation loss.
 
 pub mod bench;
+pub mod catalogue;
 pub mod dynamics;
 pub mod infractions;
 pub mod inverse;
@@ -11,8 +12,9 @@ pub mod loss;
 pub mod replay;
 pub mod rollout;
 pub mod state;
+pub mod terms;
 
-pub use dynamics::{Derivative, Drag, Dynamics, DynamicsTerm, TermInput};
+pub use dynamics::{Derivative, Dynamics, DynamicsTerm, Integrator, TermInput};
 pub use infractions::{MapCache, MapCaches, StepBoxes, StepInfractions, check_step};
 pub use inverse::{InverseActions, KinematicState, inverse_actions};
 pub use limits::{ActionLimits, soft_clamp, soft_clamp_inverse};
@@ -23,3 +25,4 @@ pub use rollout::{
     rollout_from,
 };
 pub use state::{Controls, VehicleState, WHEELBASE_RATIO, wheelbase_of};
+pub use terms::{AccelLag, DeadTime, Drag, Sideslip, SteerLag, SteerRateLimit, Understeer};

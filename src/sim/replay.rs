@@ -9,6 +9,7 @@ use burn::tensor::TensorData;
 use super::dynamics::Dynamics;
 use super::infractions::MapCaches;
 use super::inverse::inverse_actions;
+use super::limits::ActionLimits;
 use super::rollout::{Observation, Rollout, RolloutConfig, rollout_from};
 use super::state::{Controls, VehicleState, wheelbase_of};
 use crate::error::Result;
@@ -44,7 +45,11 @@ pub fn replay_logs(
             if agent.role != AgentRole::Controlled {
                 continue;
             }
-            let inv = inverse_actions(agent, scene.dt, &dynamics.limits);
+            let inv = inverse_actions(
+                agent,
+                scene.dt,
+                &dynamics.limits.unwrap_or_else(ActionLimits::unbounded),
+            );
             let slot = bi * n + ai;
             init[slot] = match inv.states[h] {
                 Some(k) => {

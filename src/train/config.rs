@@ -118,6 +118,10 @@ pub struct TrainConfig {
     pub model: ModelConfig,
     #[serde(default)]
     pub limits: ActionLimits,
+    /// Physics terms added to the paper's bicycle (a file written by `rtr sim2real
+    /// --save-dynamics`), relative to the run file. Default: none.
+    #[serde(default)]
+    pub dynamics: Option<PathBuf>,
     #[serde(default)]
     pub run: RunConfig,
 }
@@ -327,6 +331,11 @@ impl TrainConfig {
         {
             let base = path.parent().unwrap_or(Path::new("."));
             reference.checkpoint = base.join(&reference.checkpoint);
+        }
+        if let Some(dynamics) = config.dynamics.as_mut()
+            && dynamics.is_relative()
+        {
+            *dynamics = path.parent().unwrap_or(Path::new(".")).join(&*dynamics);
         }
         Ok(config)
     }

@@ -22,6 +22,8 @@ use std::time::Instant;
 
 use burn::module::Module;
 use burn::optim::{AdamWConfig, GradientsParams, ModuleOptimizer};
+
+use crate::sim::catalogue::DynamicsFile;
 use burn::prelude::*;
 use indicatif::ProgressBar;
 use rand::SeedableRng;
@@ -290,7 +292,10 @@ impl<'d> Trainer<'d> {
             Curves::new(curves_path)
         };
         let mut dynamics = Dynamics::bicycle(0.5);
-        dynamics.limits = config.limits;
+        dynamics.limits = Some(config.limits);
+        if let Some(path) = &config.dynamics {
+            dynamics = DynamicsFile::load(path)?.apply(dynamics, &main.clone().inner());
+        }
         Ok(Self {
             caches: devices.iter().map(|_| MapCaches::default()).collect(),
             data,
