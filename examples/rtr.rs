@@ -153,7 +153,8 @@ fn run(args: Args) -> rtr::Result<()> {
 
     println!(
         "\ntraining: `cargo run --release -- train --config experiments/main/<method>.toml`\n\
-         not yet built (open issues): evaluation table and training in this demo (#7), sim-to-real (#8).\n\
+         sim-to-real: `cargo run --release --example sim2real`\n\
+         not yet built (open issue): evaluation table and training in this demo (#7).\n\
          done in {:.1} s",
         clock.elapsed().as_secs_f64()
     );

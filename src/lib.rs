@@ -15,6 +15,7 @@ pub mod render;
 pub mod scenario;
 pub mod scene;
 pub mod sim;
+pub mod sim2real;
 #[cfg(test)]
 mod test_rng;
 pub mod train;

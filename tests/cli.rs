@@ -236,3 +236,92 @@ fn train_names_the_bad_run_file_and_the_missing_reference() {
         "{err}"
     );
 }
+
+#[test]
+fn sim2real_writes_the_documented_report_and_plots() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let csv = dir.path().join("rec.csv");
+    let report = dir.path().join("report.json");
+    let plots = dir.path().join("plots");
+    let dynamics = dir.path().join("dynamics.toml");
+    let path = |p: &std::path::Path| p.to_str().expect("utf-8 path").to_string();
+    let out = rtr(&[
+        "recordings",
+        "generate",
+        "--effect",
+        "accel_lag",
+        "--tracks",
+        "6",
+        "--out",
+        &path(&csv),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = rtr(&[
+        "sim2real",
+        "--recordings",
+        &path(&csv),
+        "--report",
+        &path(&report),
+        "--plots",
+        &path(&plots),
+        "--save-dynamics",
+        &path(&dynamics),
+        "--iterations",
+        "40",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).expect("report")).expect("JSON");
+    assert!(
+        v["baseline"]["heldout_pos_rmse_m"]
+            .as_f64()
+            .expect("baseline")
+            > 0.0
+    );
+    assert!(v["final"]["heldout_pos_rmse_m"].as_f64().expect("final") > 0.0);
+    assert!(v["mismatch"]["regimes"].as_array().expect("regimes").len() == 5);
+    let findings = v["findings"].as_array().expect("findings");
+    assert_eq!(findings[0]["effect"], "accel_lag", "{v}");
+    for key in ["params", "heldout_pos_rmse_m", "improvement_pct"] {
+        assert!(!findings[0][key].is_null(), "{key} missing");
+    }
+    for plot in ["regimes.svg", "tracks.svg"] {
+        let svg = std::fs::read_to_string(plots.join(plot)).expect("plot written");
+        assert!(svg.contains("<svg"));
+    }
+    assert!(
+        std::fs::read_to_string(&dynamics)
+            .expect("dynamics")
+            .contains("accel_lag")
+    );
+}
+
+#[test]
+fn sim2real_names_the_line_of_a_bad_recording() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let csv = dir.path().join("bad.csv");
+    std::fs::write(
+        &csv,
+        "track_id,t,x,y,heading,speed,accel_cmd,steer_cmd\n1,0,0,0,0,10,0,0\n1,0.1,1,0,90,10,0,0\n",
+    )
+    .expect("written");
+    let out = rtr(&[
+        "sim2real",
+        "--recordings",
+        csv.to_str().expect("utf-8"),
+        "--report",
+        dir.path().join("r.json").to_str().expect("utf-8"),
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("line 3") && err.contains("heading"), "{err}");
+    assert!(!dir.path().join("r.json").exists());
+}

@@ -1,6 +1,6 @@
 //! The `rtr` command-line tool. Thin: parses arguments, calls the library, prints.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
@@ -55,6 +55,63 @@ enum Command {
     /// Train a policy from a run file (experiments/*/*.toml): BC, IL, RL, RL-Shaped, BC+RL,
     /// RTR, KL-L or KL-R. Writes OUT/curves.csv, OUT/config.toml and OUT/checkpoints/.
     Train(TrainArgs),
+    /// Sim-to-real: locate where the simulator and vehicle recordings differ, name the physics
+    /// the bicycle model left out, fit it and show held-out error before and after.
+    Sim2real(Sim2RealArgs),
+    /// Vehicle recordings for sim-to-real.
+    Recordings {
+        #[command(subcommand)]
+        command: RecordingsCommand,
+    },
+}
+
+#[derive(Args)]
+struct Sim2RealArgs {
+    /// Recordings CSV: track_id,t,x,y,heading,speed,accel_cmd,steer_cmd[,wheelbase] (SI).
+    #[arg(long, required_unless_present = "a9", conflicts_with = "a9")]
+    recordings: Option<PathBuf>,
+    /// Use the shipped A9 drone recording instead (no commands recorded: they are inferred
+    /// from the motion, so only effects outside the actuators can be identified).
+    #[arg(long)]
+    a9: bool,
+    #[command(flatten)]
+    data: DataArgs,
+    /// Where to write the JSON report.
+    #[arg(long)]
+    report: PathBuf,
+    /// Folder for plots (regimes.svg, tracks.svg).
+    #[arg(long)]
+    plots: Option<PathBuf>,
+    /// Write the identified terms (TOML) for `rtr train --dynamics` or a run file's `dynamics`.
+    #[arg(long)]
+    save_dynamics: Option<PathBuf>,
+    /// Gradient-descent iterations per candidate.
+    #[arg(long, default_value_t = 120)]
+    iterations: usize,
+    /// Horizon of the fitting and held-out windows (s).
+    #[arg(long, default_value_t = 5.0)]
+    horizon: f64,
+    /// Seed of the train / held-out split.
+    #[arg(long, default_value_t = 2023)]
+    seed: u64,
+}
+
+#[derive(Subcommand)]
+enum RecordingsCommand {
+    /// Recordings from a plant with one concealed catalogue effect (or none), under sensor
+    /// noise: a known answer for `rtr sim2real`.
+    Generate {
+        /// accel_lag, steer_lag, dead_time, drag, understeer, steer_rate_limit, sideslip or none.
+        #[arg(long)]
+        effect: String,
+        #[arg(long, default_value_t = 11)]
+        seed: u64,
+        #[arg(long, default_value_t = 24)]
+        tracks: usize,
+        /// Output CSV.
+        #[arg(long)]
+        out: PathBuf,
+    },
 }
 
 #[derive(Args)]
@@ -68,6 +125,9 @@ struct TrainArgs {
     /// Continue the run in OUT from its last checkpoint (same result as an uninterrupted run).
     #[arg(long)]
     resume: bool,
+    /// Physics terms from `rtr sim2real --save-dynamics`, replacing the run file's `dynamics`.
+    #[arg(long)]
+    dynamics: Option<PathBuf>,
     #[command(flatten)]
     data: DataArgs,
 }
@@ -336,11 +396,117 @@ fn run(cli: Cli) -> Result<()> {
         Command::Bench { command } => bench(command),
         Command::Scenarios { command } => scenarios(command),
         Command::Train(args) => train(args),
+        Command::Sim2real(args) => sim2real(args),
+        Command::Recordings {
+            command:
+                RecordingsCommand::Generate {
+                    effect,
+                    seed,
+                    tracks,
+                    out,
+                },
+        } => generate_recordings(&effect, seed, tracks, &out),
     }
 }
 
+fn sim2real(args: Sim2RealArgs) -> Result<()> {
+    use rtr::sim2real::{Sim2RealOptions, a9::a9_recordings, identify, plots::write_plots};
+    let (recordings, commands_inferred) = match &args.recordings {
+        Some(path) => (rtr::data::Recordings::load(path)?, false),
+        None => (
+            a9_recordings(&args.data.load()?, 0.1, args.horizon + 2.0),
+            true,
+        ),
+    };
+    if !(args.horizon > 0.0 && args.horizon.is_finite()) || args.iterations == 0 {
+        return Err(Error::InvalidArgument(
+            "--horizon must be positive and --iterations at least 1".into(),
+        ));
+    }
+    let mut options = Sim2RealOptions {
+        horizon_s: args.horizon,
+        seed: args.seed,
+        commands_inferred,
+        ..Default::default()
+    };
+    options.fit.iterations = args.iterations;
+    let progress = indicatif::ProgressBar::new_spinner();
+    progress.enable_steady_tick(std::time::Duration::from_millis(200));
+    let outcome = identify(&recordings, &options, &|stage: &str| {
+        progress.set_message(stage.to_string())
+    })?;
+    progress.finish_and_clear();
+    let report = &outcome.report;
+    for line in report.summary() {
+        println!("{line}");
+    }
+    let json = serde_json::to_string_pretty(report)
+        .map_err(|e| Error::InvalidArgument(format!("cannot encode the report: {e}")))?;
+    rtr::io::atomic_write(&args.report, json.as_bytes())?;
+    println!("report: {}", args.report.display());
+    if let Some(dir) = &args.plots {
+        let written = write_plots(
+            dir,
+            &report.mismatch,
+            &report.final_model.mismatch,
+            &outcome.heldout,
+            &outcome.baseline,
+            &outcome.final_model,
+        )?;
+        for path in written {
+            println!("plot: {}", path.display());
+        }
+    }
+    if let Some(path) = &args.save_dynamics {
+        report.dynamics().save(path)?;
+        println!(
+            "dynamics ({} terms): {}",
+            report.dynamics().terms.len(),
+            path.display()
+        );
+    }
+    Ok(())
+}
+
+fn generate_recordings(effect: &str, seed: u64, tracks: usize, out: &Path) -> Result<()> {
+    use rtr::sim2real::{Effect, GeneratorConfig, generate};
+    let effect = match effect {
+        "none" => None,
+        name => Some(Effect::from_name(name).ok_or_else(|| {
+            let names: Vec<&str> = Effect::ALL.iter().map(|e| e.name()).collect();
+            Error::InvalidArgument(format!(
+                "unknown effect `{name}`: expected none or one of {}",
+                names.join(", ")
+            ))
+        })?),
+    };
+    if tracks < 3 {
+        return Err(Error::InvalidArgument("--tracks must be at least 3".into()));
+    }
+    let mut config = GeneratorConfig::with_effect(effect, seed);
+    config.tracks = tracks;
+    let device = rtr::backend::Backend::NdArray.device(false)?;
+    let recordings = generate(&config, &device);
+    recordings.save(out)?;
+    println!(
+        "{} tracks of {} s at {} Hz{} -> {}",
+        tracks,
+        config.duration_s,
+        1.0 / config.period_s,
+        match &config.effect {
+            Some((e, v)) => format!(", concealed {e} {v:?}"),
+            None => ", no concealed effect".into(),
+        },
+        out.display()
+    );
+    Ok(())
+}
+
 fn train(args: TrainArgs) -> Result<()> {
-    let config = rtr::train::TrainConfig::from_toml_file(&args.config)?;
+    let mut config = rtr::train::TrainConfig::from_toml_file(&args.config)?;
+    if let Some(path) = &args.dynamics {
+        config.dynamics = Some(path.clone());
+    }
     let out = args.out.clone().unwrap_or_else(|| {
         let stem = args
             .config

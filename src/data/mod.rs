@@ -4,6 +4,7 @@
 pub mod a9;
 pub mod automatum;
 pub mod logged_infractions;
+pub mod recordings;
 pub mod summary;
 pub mod track;
 pub mod traffic;
@@ -12,6 +13,7 @@ pub mod windows;
 pub use a9::A9Dataset;
 pub use automatum::{A9_DYNAMIC_SHA256, A9_STATIC_SHA256, Recording, load_recording, sha256_file};
 pub use logged_infractions::{LoggedInfractions, logged_infractions};
+pub use recordings::{RecordedTrack, Recordings};
 pub use summary::{DataSummary, summarize};
 pub use track::{AgentState, Track, TrackSample, VehicleClass};
 pub use traffic::{LaneTraffic, TrafficStatistics, VehicleSample, rank_from_right};

@@ -1,0 +1,599 @@
+//! Vehicle recordings for sim-to-real identification: uniformly sampled states of real vehicles
+//! together with the commands they were driven with.
+//!
+//! The format is CSV with a header. Required columns (any order, SI units):
+//!
+//! | column      | meaning                                              | unit  |
+//! |-------------|------------------------------------------------------|-------|
+//! | `track_id`  | vehicle / run identifier (any text)                  |       |
+//! | `t`         | time                                                 | s     |
+//! | `x`, `y`    | position                                             | m     |
+//! | `heading`   | yaw angle                                            | rad   |
+//! | `speed`     | longitudinal speed                                   | m/s   |
+//! | `accel_cmd` | commanded longitudinal acceleration                  | m/s^2 |
+//! | `steer_cmd` | commanded road-wheel steering angle                  | rad   |
+//!
+//! An optional `wheelbase` column (m) may be given per row; within a track it must be constant
+//! and given on every row or on none. Other columns are ignored. Fields are trimmed of
+//! surrounding whitespace; blank lines are skipped.
+//!
+//! Rows are grouped by `track_id` (tracks keep the order of their first row, rows keep file
+//! order, rows of different tracks may interleave). Each track must have at least two samples,
+//! strictly increasing times and a uniform sampling period: the period is the median time step
+//! and every step must be within 5% of it. Gaps and jitter are rejected rather than silently
+//! resampled. Values whose magnitude suggests a unit mistake (degrees, km/h, millimetres) are
+//! rejected too.
+
+use std::collections::HashMap;
+use std::f64::consts::PI;
+use std::path::Path;
+
+use crate::error::{Error, Result};
+
+/// The required columns, in the order [`Recordings::to_csv`] writes them.
+const REQUIRED: [&str; 8] = [
+    "track_id",
+    "t",
+    "x",
+    "y",
+    "heading",
+    "speed",
+    "accel_cmd",
+    "steer_cmd",
+];
+
+/// The optional per-row wheelbase column.
+const WHEELBASE: &str = "wheelbase";
+
+/// Largest accepted |heading| (rad): one full turn plus a little slack for unwrapped angles.
+const MAX_HEADING: f64 = 2.0 * PI + 0.01;
+/// Largest accepted |steer_cmd| (rad) for a road-wheel angle.
+const MAX_STEER: f64 = 1.0;
+/// Accepted speed range (m/s); slightly negative speeds are tolerated as estimator noise.
+const MIN_SPEED: f64 = -1.0;
+const MAX_SPEED: f64 = 90.0;
+/// Largest accepted |accel_cmd| (m/s^2).
+const MAX_ACCEL: f64 = 20.0;
+/// Accepted wheelbase range (m).
+const MIN_WHEELBASE: f64 = 1.0;
+const MAX_WHEELBASE: f64 = 20.0;
+/// Largest accepted change of the wheelbase within one track (m).
+const WHEELBASE_TOLERANCE: f64 = 1e-3;
+/// Largest accepted relative deviation of a time step from the track's period.
+const PERIOD_TOLERANCE: f64 = 0.05;
+
+/// One vehicle's uniformly sampled recording.
+#[derive(Debug, Clone)]
+pub struct RecordedTrack {
+    /// The `track_id` of its rows.
+    pub id: String,
+    /// 1-based line of the track's first row in the source.
+    pub first_line: usize,
+    /// Sampling period (s): the median time step.
+    pub period: f64,
+    /// Time (s).
+    pub t: Vec<f64>,
+    /// Position (m).
+    pub x: Vec<f64>,
+    /// Position (m).
+    pub y: Vec<f64>,
+    /// Yaw angle (rad).
+    pub heading: Vec<f64>,
+    /// Longitudinal speed (m/s).
+    pub speed: Vec<f64>,
+    /// Commanded longitudinal acceleration (m/s^2).
+    pub accel_cmd: Vec<f64>,
+    /// Commanded road-wheel steering angle (rad).
+    pub steer_cmd: Vec<f64>,
+    /// Wheelbase (m), when the recording gives one.
+    pub wheelbase: Option<f64>,
+}
+
+impl RecordedTrack {
+    /// A track with no samples yet (`first_line` 0: not read from a file).
+    pub fn empty(id: String, period: f64, wheelbase: Option<f64>) -> Self {
+        Self {
+            id,
+            first_line: 0,
+            period,
+            t: Vec::new(),
+            x: Vec::new(),
+            y: Vec::new(),
+            heading: Vec::new(),
+            speed: Vec::new(),
+            accel_cmd: Vec::new(),
+            steer_cmd: Vec::new(),
+            wheelbase,
+        }
+    }
+
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.t.len()
+    }
+
+    /// Whether the track has no samples.
+    pub fn is_empty(&self) -> bool {
+        self.t.is_empty()
+    }
+
+    /// Time from the first to the last sample (s); 0 with fewer than two samples.
+    pub fn duration(&self) -> f64 {
+        match (self.t.first(), self.t.last()) {
+            (Some(first), Some(last)) => last - first,
+            _ => 0.0,
+        }
+    }
+}
+
+/// All tracks of one recordings file.
+#[derive(Debug, Clone)]
+pub struct Recordings {
+    /// Where the recordings came from (a path or another name), used in error messages.
+    pub source: String,
+    /// Tracks in order of their first row.
+    pub tracks: Vec<RecordedTrack>,
+}
+
+impl Recordings {
+    /// Reads and parses a recordings CSV file.
+    pub fn load(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        Self::parse(&path.display().to_string(), &text)
+    }
+
+    /// Parses recordings CSV text; `source` names it in error messages.
+    pub fn parse(source: &str, text: &str) -> Result<Self> {
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+        if text.trim().is_empty() {
+            return Err(Error::invalid(
+                source,
+                "line 1",
+                format!(
+                    "the file is empty; expected the header `{}` followed by data rows",
+                    expected_header()
+                ),
+            ));
+        }
+        let mut reader = csv::ReaderBuilder::new()
+            .has_headers(true)
+            .flexible(false)
+            .trim(csv::Trim::All)
+            .from_reader(text.as_bytes());
+        let header = reader.headers().map_err(|e| csv_error(source, &e))?.clone();
+        let columns = Columns::find(source, &header)?;
+
+        let mut builders: Vec<TrackBuilder> = Vec::new();
+        let mut index: HashMap<String, usize> = HashMap::new();
+        let mut record = csv::StringRecord::new();
+        loop {
+            match reader.read_record(&mut record) {
+                Ok(true) => {}
+                Ok(false) => break,
+                Err(e) => return Err(csv_error(source, &e)),
+            }
+            let line = record
+                .position()
+                .map(|p| p.line() as usize)
+                .unwrap_or_default();
+            let row = Row::parse(source, &columns, &record, line)?;
+            let slot = match index.get(&row.id) {
+                Some(&slot) => slot,
+                None => {
+                    index.insert(row.id.clone(), builders.len());
+                    builders.push(TrackBuilder::new(row.id.clone(), line));
+                    builders.len() - 1
+                }
+            };
+            builders[slot].push(source, row, line)?;
+        }
+        if builders.is_empty() {
+            return Err(Error::invalid(
+                source,
+                "line 2",
+                format!(
+                    "the file has a header but no data rows; expected rows under `{}`",
+                    expected_header()
+                ),
+            ));
+        }
+        let tracks = builders
+            .into_iter()
+            .map(|b| b.finish(source))
+            .collect::<Result<Vec<_>>>()?;
+        Ok(Recordings {
+            source: source.to_string(),
+            tracks,
+        })
+    }
+
+    /// Writes the recordings as CSV that [`Recordings::parse`] reads back exactly: the header
+    /// `track_id,t,x,y,heading,speed,accel_cmd,steer_cmd`, plus `wheelbase` when every track
+    /// has one, and one row per sample, tracks one after the other.
+    pub fn to_csv(&self) -> String {
+        let with_wheelbase =
+            !self.tracks.is_empty() && self.tracks.iter().all(|t| t.wheelbase.is_some());
+        let mut out = expected_header();
+        if with_wheelbase {
+            out.push(',');
+            out.push_str(WHEELBASE);
+        }
+        out.push('\n');
+        for track in &self.tracks {
+            let id = quote(&track.id);
+            for k in 0..track.len() {
+                let values = [
+                    track.t[k],
+                    track.x[k],
+                    track.y[k],
+                    track.heading[k],
+                    track.speed[k],
+                    track.accel_cmd[k],
+                    track.steer_cmd[k],
+                ];
+                out.push_str(&id);
+                for v in values {
+                    out.push(',');
+                    out.push_str(&v.to_string());
+                }
+                if let (true, Some(wb)) = (with_wheelbase, track.wheelbase) {
+                    out.push(',');
+                    out.push_str(&wb.to_string());
+                }
+                out.push('\n');
+            }
+        }
+        out
+    }
+
+    /// Writes [`Recordings::to_csv`] to `path` atomically.
+    pub fn save(&self, path: &Path) -> Result<()> {
+        crate::io::atomic_write(path, self.to_csv().as_bytes())
+    }
+}
+
+/// The required header as one CSV line.
+fn expected_header() -> String {
+    REQUIRED.join(",")
+}
+
+/// Quotes a CSV field when it needs it (separator, quote, line break, surrounding spaces).
+fn quote(field: &str) -> String {
+    let needs = field.contains([',', '"', '\n', '\r']) || field.trim() != field;
+    if needs {
+        format!("\"{}\"", field.replace('"', "\"\""))
+    } else {
+        field.to_string()
+    }
+}
+
+/// Converts a CSV syntax error into [`Error::Parse`].
+fn csv_error(source: &str, e: &csv::Error) -> Error {
+    let (line, column, message) = match e.kind() {
+        csv::ErrorKind::UnequalLengths {
+            pos,
+            expected_len,
+            len,
+        } => (
+            pos.as_ref().map(|p| p.line() as usize).unwrap_or_default(),
+            (*len).min(*expected_len) as usize + 1,
+            format!(
+                "the row has {len} fields but the header has {expected_len}; every row needs \
+                 one field per header column"
+            ),
+        ),
+        csv::ErrorKind::Utf8 { pos, err } => (
+            pos.as_ref().map(|p| p.line() as usize).unwrap_or_default(),
+            err.field() + 1,
+            format!("invalid UTF-8: {err}"),
+        ),
+        _ => (
+            e.position().map(|p| p.line() as usize).unwrap_or_default(),
+            0,
+            e.to_string(),
+        ),
+    };
+    Error::Parse {
+        source_name: source.to_string(),
+        line,
+        column,
+        message,
+    }
+}
+
+/// Field indices of the columns rtr reads.
+struct Columns {
+    /// Indices of [`REQUIRED`], in that order.
+    required: [usize; 8],
+    wheelbase: Option<usize>,
+}
+
+impl Columns {
+    fn find(source: &str, header: &csv::StringRecord) -> Result<Self> {
+        let position = |name: &str| -> Result<Option<usize>> {
+            let mut hits = header.iter().enumerate().filter(|(_, h)| *h == name);
+            let first = hits.next().map(|(i, _)| i);
+            if let Some((second, _)) = hits.next() {
+                return Err(Error::invalid(
+                    source,
+                    format!("line 1, column `{name}`"),
+                    format!(
+                        "the header names `{name}` twice (fields {} and {}); expected each \
+                         column once",
+                        first.unwrap_or_default() + 1,
+                        second + 1
+                    ),
+                ));
+            }
+            Ok(first)
+        };
+        let mut required = [0; 8];
+        let mut missing = Vec::new();
+        for (slot, name) in required.iter_mut().zip(REQUIRED) {
+            match position(name)? {
+                Some(i) => *slot = i,
+                None => missing.push(format!("`{name}`")),
+            }
+        }
+        if !missing.is_empty() {
+            let found = header.iter().collect::<Vec<_>>().join(",");
+            return Err(Error::invalid(
+                source,
+                "line 1 (header)",
+                format!(
+                    "missing required column{} {}; expected a header with `{}` (any order, \
+                     optional `{WHEELBASE}`, extra columns ignored), found `{found}`",
+                    if missing.len() == 1 { "" } else { "s" },
+                    missing.join(", "),
+                    expected_header()
+                ),
+            ));
+        }
+        Ok(Columns {
+            required,
+            wheelbase: position(WHEELBASE)?,
+        })
+    }
+}
+
+/// One parsed and range-checked data row.
+struct Row {
+    id: String,
+    /// t, x, y, heading, speed, accel_cmd, steer_cmd.
+    values: [f64; 7],
+    wheelbase: Option<f64>,
+}
+
+impl Row {
+    fn parse(
+        source: &str,
+        columns: &Columns,
+        record: &csv::StringRecord,
+        line: usize,
+    ) -> Result<Self> {
+        let field = |i: usize| record.get(i).unwrap_or("");
+        let id = field(columns.required[0]).to_string();
+        if id.is_empty() {
+            return Err(Error::invalid(
+                source,
+                format!("line {line}, column `track_id`"),
+                "the track id is empty; expected a non-empty identifier",
+            ));
+        }
+        let mut values = [0.0; 7];
+        for (k, value) in values.iter_mut().enumerate() {
+            let name = REQUIRED[k + 1];
+            let i = columns.required[k + 1];
+            *value = number(source, line, i, name, field(i))?;
+            check_range(source, line, name, *value)?;
+        }
+        let wheelbase = match columns.wheelbase {
+            Some(i) if !field(i).is_empty() => {
+                let wb = number(source, line, i, WHEELBASE, field(i))?;
+                check_range(source, line, WHEELBASE, wb)?;
+                Some(wb)
+            }
+            _ => None,
+        };
+        Ok(Row {
+            id,
+            values,
+            wheelbase,
+        })
+    }
+}
+
+/// Parses a finite number from field `index` (0-based) named `name`.
+fn number(source: &str, line: usize, index: usize, name: &str, text: &str) -> Result<f64> {
+    let parse_error = |message: String| Error::Parse {
+        source_name: source.to_string(),
+        line,
+        column: index + 1,
+        message,
+    };
+    match text.parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        Ok(v) => Err(parse_error(format!(
+            "column `{name}`: `{text}` is {}; expected a finite number",
+            if v.is_nan() { "NaN" } else { "infinite" }
+        ))),
+        Err(_) if text.is_empty() => Err(parse_error(format!(
+            "column `{name}` is empty; expected a finite number"
+        ))),
+        Err(_) => Err(parse_error(format!(
+            "column `{name}`: `{text}` is not a number; expected a finite decimal number"
+        ))),
+    }
+}
+
+/// Rejects values whose magnitude suggests a unit mistake.
+fn check_range(source: &str, line: usize, name: &str, v: f64) -> Result<()> {
+    let problem = match name {
+        "heading" if v.abs() > MAX_HEADING => Some(format!(
+            "heading {v} looks like degrees; expected radians with |heading| <= 2*pi"
+        )),
+        "steer_cmd" if v.abs() > MAX_STEER => Some(format!(
+            "steering command {v} rad is too large for a road-wheel angle (|steer_cmd| <= \
+             {MAX_STEER} rad); it looks like degrees or a steering-wheel angle: expected the \
+             road-wheel angle in radians"
+        )),
+        "speed" if v > MAX_SPEED => Some(format!(
+            "speed {v} looks like km/h; expected m/s in [{MIN_SPEED}, {MAX_SPEED}]"
+        )),
+        "speed" if v < MIN_SPEED => Some(format!(
+            "speed {v} is negative; expected m/s in [{MIN_SPEED}, {MAX_SPEED}]"
+        )),
+        "accel_cmd" if v.abs() > MAX_ACCEL => Some(format!(
+            "acceleration command {v} is implausible; expected m/s^2 with |accel_cmd| <= \
+             {MAX_ACCEL}"
+        )),
+        WHEELBASE if v > MAX_WHEELBASE => Some(format!(
+            "wheelbase {v} looks like millimetres or centimetres; expected metres in \
+             [{MIN_WHEELBASE}, {MAX_WHEELBASE}]"
+        )),
+        WHEELBASE if v < MIN_WHEELBASE => Some(format!(
+            "wheelbase {v} is too small; expected metres in [{MIN_WHEELBASE}, {MAX_WHEELBASE}]"
+        )),
+        _ => None,
+    };
+    match problem {
+        Some(message) => Err(Error::invalid(
+            source,
+            format!("line {line}, column `{name}`"),
+            message,
+        )),
+        None => Ok(()),
+    }
+}
+
+/// Rows of one track as they are read.
+struct TrackBuilder {
+    track: RecordedTrack,
+    /// Line of every row.
+    lines: Vec<usize>,
+    /// Line of the first row that gave a wheelbase, with its value.
+    wheelbase_from: Option<usize>,
+    /// Line of the first row without a wheelbase.
+    no_wheelbase_from: Option<usize>,
+}
+
+impl TrackBuilder {
+    fn new(id: String, first_line: usize) -> Self {
+        TrackBuilder {
+            track: RecordedTrack {
+                first_line,
+                ..RecordedTrack::empty(id, 0.0, None)
+            },
+            lines: Vec::new(),
+            wheelbase_from: None,
+            no_wheelbase_from: None,
+        }
+    }
+
+    fn push(&mut self, source: &str, row: Row, line: usize) -> Result<()> {
+        let tr = &mut self.track;
+        let [t, x, y, heading, speed, accel_cmd, steer_cmd] = row.values;
+        if let (Some(&prev), Some(&prev_line)) = (tr.t.last(), self.lines.last())
+            && t <= prev
+        {
+            return Err(Error::invalid(
+                source,
+                format!("line {line}, column `t`"),
+                format!(
+                    "time {t} of track `{}` does not increase after {prev} (line {prev_line}); \
+                     expected strictly increasing times within a track",
+                    tr.id
+                ),
+            ));
+        }
+        match (row.wheelbase, tr.wheelbase) {
+            (Some(wb), Some(first)) if (wb - first).abs() > WHEELBASE_TOLERANCE => {
+                return Err(Error::invalid(
+                    source,
+                    format!("line {line}, column `{WHEELBASE}`"),
+                    format!(
+                        "wheelbase {wb} of track `{}` differs from {first} (line {}); a \
+                         track's wheelbase must be constant (within {WHEELBASE_TOLERANCE} m)",
+                        tr.id,
+                        self.wheelbase_from.unwrap_or_default()
+                    ),
+                ));
+            }
+            (Some(wb), None) => {
+                tr.wheelbase = Some(wb);
+                self.wheelbase_from = Some(line);
+            }
+            (None, _) => {
+                self.no_wheelbase_from.get_or_insert(line);
+            }
+            (Some(_), Some(_)) => {}
+        }
+        if let (Some(with), Some(without)) = (self.wheelbase_from, self.no_wheelbase_from) {
+            return Err(Error::invalid(
+                source,
+                format!("line {}, column `{WHEELBASE}`", with.max(without)),
+                format!(
+                    "track `{}` gives a wheelbase on line {with} but none on line {without}; \
+                     expected it on every row of the track or on none",
+                    tr.id
+                ),
+            ));
+        }
+        tr.t.push(t);
+        tr.x.push(x);
+        tr.y.push(y);
+        tr.heading.push(heading);
+        tr.speed.push(speed);
+        tr.accel_cmd.push(accel_cmd);
+        tr.steer_cmd.push(steer_cmd);
+        self.lines.push(line);
+        Ok(())
+    }
+
+    fn finish(self, source: &str) -> Result<RecordedTrack> {
+        let mut track = self.track;
+        if track.len() < 2 {
+            return Err(Error::invalid(
+                source,
+                format!("track `{}`", track.id),
+                format!(
+                    "only {} sample (line {}); expected at least 2 samples to know the \
+                     sampling period",
+                    track.len(),
+                    track.first_line
+                ),
+            ));
+        }
+        let steps: Vec<f64> = track.t.windows(2).map(|w| w[1] - w[0]).collect();
+        let mut sorted = steps.clone();
+        sorted.sort_by(f64::total_cmp);
+        let n = sorted.len();
+        let period = if n % 2 == 1 {
+            sorted[n / 2]
+        } else {
+            0.5 * (sorted[n / 2 - 1] + sorted[n / 2])
+        };
+        for (k, &step) in steps.iter().enumerate() {
+            if (step - period).abs() > PERIOD_TOLERANCE * period {
+                let line = self.lines[k + 1];
+                return Err(Error::invalid(
+                    source,
+                    format!("line {line}, column `t`"),
+                    format!(
+                        "track `{}` jumps from t = {} (line {}) to t = {}, a step of {step} s, \
+                         but its sampling period (median step) is {period} s; steps deviating \
+                         more than {}% are gaps or jitter: expected uniformly sampled \
+                         recordings (resample them first)",
+                        track.id,
+                        track.t[k],
+                        self.lines[k],
+                        track.t[k + 1],
+                        PERIOD_TOLERANCE * 100.0
+                    ),
+                ));
+            }
+        }
+        track.period = period;
+        Ok(track)
+    }
+}

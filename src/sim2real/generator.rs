@@ -1,0 +1,317 @@
+//! Recordings from a richer "true" plant with one concealed effect, to prove sim-to-real
+//! blind: drivers follow speed targets and steer through lane changes, curves, low-speed
+//! turns and brake events, while the plant adds the hidden term and the recording adds
+//! sensor noise sized so no single step gives the effect away.
+
+use burn::prelude::*;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+
+use crate::data::{RecordedTrack, Recordings};
+use crate::geometry::wrap_angle;
+use crate::sim::catalogue::Effect;
+use crate::sim::terms::parameter;
+use crate::sim::{Controls, Dynamics, Integrator, VehicleState};
+
+/// Sensor noise (standard deviations): RTK-GNSS-grade position, IMU heading, wheel speed.
+#[derive(Debug, Clone, Copy)]
+pub struct SensorNoise {
+    pub position_m: f64,
+    pub heading_rad: f64,
+    pub speed_m_s: f64,
+}
+
+impl Default for SensorNoise {
+    fn default() -> Self {
+        Self {
+            position_m: 0.1,
+            heading_rad: 0.003,
+            speed_m_s: 0.1,
+        }
+    }
+}
+
+/// What to generate.
+#[derive(Debug, Clone)]
+pub struct GeneratorConfig {
+    pub seed: u64,
+    pub tracks: usize,
+    pub duration_s: f64,
+    pub period_s: f64,
+    /// Wheelbase written in the recordings.
+    pub declared_wheelbase_m: f64,
+    /// Wheelbase of the true plant (differs from the declared one to test that a wrong
+    /// wheelbase is fitted, not reported as missing physics).
+    pub true_wheelbase_m: f64,
+    /// The concealed effect and its parameter values (catalogue order), if any.
+    pub effect: Option<(Effect, Vec<f64>)>,
+    pub noise: SensorNoise,
+}
+
+impl GeneratorConfig {
+    /// 24 one-minute tracks at 10 Hz, with `effect` at its [`typical`] strength.
+    pub fn with_effect(effect: Option<Effect>, seed: u64) -> Self {
+        Self {
+            seed,
+            tracks: 24,
+            duration_s: 60.0,
+            period_s: 0.1,
+            declared_wheelbase_m: 2.8,
+            true_wheelbase_m: 2.8,
+            effect: effect.map(|e| (e, typical(e))),
+            noise: SensorNoise::default(),
+        }
+    }
+}
+
+/// A realistic strength of each effect for a passenger car.
+pub fn typical(effect: Effect) -> Vec<f64> {
+    match effect {
+        Effect::AccelLag => vec![0.5],
+        Effect::SteerLag => vec![0.3],
+        Effect::DeadTime => vec![0.3],
+        Effect::Drag => vec![0.0006, 0.15],
+        Effect::Understeer => vec![0.004],
+        Effect::SteerRateLimit => vec![0.25],
+        Effect::Sideslip => vec![1.4],
+    }
+}
+
+/// Integrator steps per sample in the true plant (fine, so the plant is continuous-time to
+/// well below the noise).
+const PLANT_SUBSTEPS: usize = 10;
+
+/// Generates the recordings on `device` (plain, no autodiff needed).
+pub fn generate(config: &GeneratorConfig, device: &Device) -> Recordings {
+    let mut rng = ChaCha8Rng::seed_from_u64(config.seed);
+    let n = config.tracks;
+    let dt = config.period_s;
+    let samples = (config.duration_s / dt).round() as usize + 1;
+    let mut plant = Dynamics::bicycle(dt);
+    plant.limits = None;
+    plant.integrator = Integrator::Midpoint;
+    plant.substeps = PLANT_SUBSTEPS;
+    if let Some((effect, values)) = &config.effect {
+        let params: Vec<Tensor<2>> = values.iter().map(|&v| parameter(v, device)).collect();
+        plant = plant.with_term(effect.term(&params, dt));
+    }
+    let mut drivers: Vec<Driver> = (0..n).map(|_| Driver::new(&mut rng)).collect();
+    let column = |values: Vec<f64>| {
+        let v: Vec<f32> = values.iter().map(|&x| x as f32).collect();
+        Tensor::<2>::from_data(burn::tensor::TensorData::new(v, [n, 1]), device)
+    };
+    let host = |t: &Tensor<2>| -> Vec<f64> {
+        t.to_data()
+            .convert::<f64>()
+            .try_into_vec::<f64>()
+            .expect("f64 data")
+    };
+    let mut state = VehicleState {
+        x: column((0..n).map(|_| rng.random_range(-500.0..500.0)).collect()),
+        y: column((0..n).map(|_| rng.random_range(-500.0..500.0)).collect()),
+        heading: column((0..n).map(|_| rng.random_range(-3.0..3.0)).collect()),
+        speed: column(drivers.iter().map(|d| d.target).collect()),
+        aux: Vec::new(),
+    };
+    let zero = Controls {
+        accel: column(vec![0.0; n]),
+        steer: column(vec![0.0; n]),
+    };
+    state = plant.init_aux(state, &zero);
+    let wheelbase = column(vec![config.true_wheelbase_m; n]);
+    let mut tracks: Vec<RecordedTrack> = (0..n)
+        .map(|i| RecordedTrack::empty(format!("{}", i + 1), dt, Some(config.declared_wheelbase_m)))
+        .collect();
+    let noise = |sigma: f64| Normal::new(0.0, sigma.max(1e-12)).expect("finite sigma");
+    let (pos_noise, heading_noise, speed_noise) = (
+        noise(config.noise.position_m),
+        noise(config.noise.heading_rad),
+        noise(config.noise.speed_m_s),
+    );
+    for k in 0..samples {
+        let (x, y, h, v) = (
+            host(&state.x),
+            host(&state.y),
+            host(&state.heading),
+            host(&state.speed),
+        );
+        let mut commands = (Vec::with_capacity(n), Vec::with_capacity(n));
+        for (i, driver) in drivers.iter_mut().enumerate() {
+            let (accel, steer) = driver.command(k as f64 * dt, v[i], &mut rng);
+            let track = &mut tracks[i];
+            track.t.push(k as f64 * dt);
+            track.x.push(x[i] + pos_noise.sample(&mut rng));
+            track.y.push(y[i] + pos_noise.sample(&mut rng));
+            track
+                .heading
+                .push(wrap_angle(h[i] + heading_noise.sample(&mut rng)));
+            track.speed.push(v[i] + speed_noise.sample(&mut rng));
+            track.accel_cmd.push(accel);
+            track.steer_cmd.push(steer);
+            commands.0.push(accel);
+            commands.1.push(steer);
+        }
+        let command = Controls {
+            accel: column(commands.0),
+            steer: column(commands.1),
+        };
+        state = plant.step(&state, &command, &wheelbase);
+    }
+    Recordings {
+        source: format!("generator (seed {})", config.seed),
+        tracks,
+    }
+}
+
+/// Speed band centres (m/s): town, rural road, highway.
+const SPEED_BANDS: [f64; 3] = [9.0, 20.0, 30.0];
+
+/// The steering manoeuvre in progress.
+#[derive(Debug, Clone, Copy)]
+enum Manoeuvre {
+    Straight {
+        until: f64,
+    },
+    /// Sinusoidal steering over `duration` for a 3.5 m lateral shift.
+    LaneChange {
+        start: f64,
+        duration: f64,
+        sign: f64,
+    },
+    /// Ramp in, hold, ramp out to a constant-radius curve.
+    Curve {
+        start: f64,
+        hold: f64,
+        steer: f64,
+    },
+    /// Low-speed turn: a fast steering step held for a quarter circle.
+    Turn {
+        start: f64,
+        hold: f64,
+        steer: f64,
+    },
+}
+
+/// A driver: speed targets with proportional tracking, brake events and a sequence of
+/// steering manoeuvres, all in commands (what a drive-by-wire log would record).
+#[derive(Debug)]
+struct Driver {
+    /// Speed band centre for this track (urban, rural or highway).
+    base: f64,
+    target: f64,
+    next_target_at: f64,
+    brake_until: f64,
+    brake: f64,
+    manoeuvre: Manoeuvre,
+    wheelbase: f64,
+}
+
+impl Driver {
+    fn new(rng: &mut ChaCha8Rng) -> Self {
+        let base = SPEED_BANDS[rng.random_range(0..SPEED_BANDS.len())];
+        Self {
+            base,
+            target: base * rng.random_range(0.8..1.2),
+            next_target_at: rng.random_range(3.0..8.0),
+            brake_until: -1.0,
+            brake: 0.0,
+            manoeuvre: Manoeuvre::Straight {
+                until: rng.random_range(1.0..4.0),
+            },
+            wheelbase: 2.8,
+        }
+    }
+
+    fn command(&mut self, t: f64, v: f64, rng: &mut ChaCha8Rng) -> (f64, f64) {
+        if t >= self.next_target_at {
+            // Drives pass from town to highway and back, so every track visits every regime.
+            if rng.random_bool(0.3) {
+                self.base = SPEED_BANDS[rng.random_range(0..SPEED_BANDS.len())];
+            }
+            self.target = (self.base * rng.random_range(0.6..1.3)).max(3.0);
+            self.next_target_at = t + rng.random_range(4.0..10.0);
+            if rng.random_bool(0.2) && v > 8.0 {
+                self.brake_until = t + rng.random_range(1.0..2.0);
+                self.brake = -rng.random_range(3.0..5.5);
+            }
+        }
+        let accel = if t < self.brake_until {
+            self.brake
+        } else {
+            (0.6 * (self.target - v)).clamp(-3.5, 2.5)
+        };
+        let steer = self.steer(t, v.max(1.0), rng);
+        // Rounded to what a CAN log keeps.
+        ((accel * 1e3).round() / 1e3, (steer * 1e5).round() / 1e5)
+    }
+
+    fn steer(&mut self, t: f64, v: f64, rng: &mut ChaCha8Rng) -> f64 {
+        let l = self.wheelbase;
+        let done = match self.manoeuvre {
+            Manoeuvre::Straight { until } => t >= until,
+            Manoeuvre::LaneChange {
+                start, duration, ..
+            } => t >= start + duration,
+            Manoeuvre::Curve { start, hold, .. } => t >= start + 4.0 + hold,
+            Manoeuvre::Turn { start, hold, .. } => t >= start + hold + 1.0,
+        };
+        if done {
+            self.manoeuvre = match rng.random_range(0..4) {
+                0 => Manoeuvre::Straight {
+                    until: t + rng.random_range(2.0..6.0),
+                },
+                1 => Manoeuvre::LaneChange {
+                    start: t,
+                    duration: rng.random_range(3.0..5.0),
+                    sign: if rng.random_bool(0.5) { 1.0 } else { -1.0 },
+                },
+                2 => {
+                    let lateral =
+                        rng.random_range(1.0..3.0) * if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+                    Manoeuvre::Curve {
+                        start: t,
+                        hold: rng.random_range(3.0..8.0),
+                        steer: (l * lateral / (v * v)).atan(),
+                    }
+                }
+                _ if v < 13.0 => {
+                    let steer: f64 = rng.random_range(0.15..0.35)
+                        * if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+                    // A quarter circle of radius L / tan(steer).
+                    let hold = std::f64::consts::FRAC_PI_2 * l / (steer.abs().tan() * v);
+                    Manoeuvre::Turn {
+                        start: t,
+                        hold,
+                        steer,
+                    }
+                }
+                _ => Manoeuvre::Straight {
+                    until: t + rng.random_range(1.0..3.0),
+                },
+            };
+        }
+        match self.manoeuvre {
+            Manoeuvre::Straight { .. } => 0.0,
+            Manoeuvre::LaneChange {
+                start,
+                duration,
+                sign,
+            } => {
+                let peak = std::f64::consts::TAU * 3.5 / (duration * duration);
+                let lateral = peak * (std::f64::consts::TAU * (t - start) / duration).sin();
+                (l * sign * lateral / (v * v)).atan()
+            }
+            Manoeuvre::Curve { start, hold, steer } => {
+                let s = t - start;
+                let ramp = (s / 2.0).min(1.0).min(((4.0 + hold - s) / 2.0).max(0.0));
+                steer * ramp
+            }
+            Manoeuvre::Turn { start, hold, steer } => {
+                let s = t - start;
+                let ramp = (s / 0.4).min(1.0).min(((hold + 1.0 - s) / 0.4).max(0.0));
+                steer * ramp
+            }
+        }
+    }
+}

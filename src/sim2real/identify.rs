@@ -1,0 +1,296 @@
+//! The identification pipeline: baseline, nominal refit, one fit per catalogue effect,
+//! selection on held-out tracks with a parsimony rule, pairs when one effect is not enough.
+
+use rand::SeedableRng;
+use rand::seq::SliceRandom;
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+
+use super::fit::{Fit, FitOptions, evaluate, fit, standard_errors};
+use super::locate::{Mismatch, locate};
+use super::report::{Comparison, Report};
+use super::simulate::{Candidate, StepError, batches};
+use super::windows::{Window, windows};
+use crate::backend::Backend;
+use crate::data::Recordings;
+use crate::error::{Error, Result};
+use crate::sim::catalogue::Effect;
+
+/// Settings of a sim-to-real run.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Sim2RealOptions {
+    /// Horizon of fitting and held-out evaluation windows (s).
+    pub horizon_s: f64,
+    /// Start-to-start spacing of those windows (s).
+    pub stride_s: f64,
+    /// Horizon of the short windows that localise the mismatch (s).
+    pub short_window_s: f64,
+    /// One track in this many is held out.
+    pub heldout_every: usize,
+    pub seed: u64,
+    pub fit: FitOptions,
+    /// Parsimony rule: an effect is reported only if it lowers held-out position RMSE by at
+    /// least this much ...
+    pub min_improvement_pct: f64,
+    /// ... and the per-track paired improvement has at least this t statistic.
+    pub min_t_stat: f64,
+    /// Candidates to try.
+    pub effects: Vec<Effect>,
+    /// Wheelbase for tracks that declare none (m).
+    pub default_wheelbase_m: f64,
+    /// Whether the commands were inferred from the motion (then effects acting on the
+    /// commands cannot be identified and are not tried).
+    pub commands_inferred: bool,
+}
+
+impl Default for Sim2RealOptions {
+    fn default() -> Self {
+        Self {
+            horizon_s: 5.0,
+            stride_s: 2.5,
+            short_window_s: 1.0,
+            heldout_every: 2,
+            seed: 2023,
+            fit: FitOptions::default(),
+            min_improvement_pct: 10.0,
+            min_t_stat: 2.5,
+            effects: Effect::ALL.to_vec(),
+            default_wheelbase_m: 2.8,
+            commands_inferred: false,
+        }
+    }
+}
+
+/// What a run produced: the report, and what the plots need.
+pub struct Outcome {
+    pub report: Report,
+    pub heldout: Vec<Window>,
+    pub baseline: Evaluated,
+    pub final_model: Evaluated,
+}
+
+/// Held-out errors of one model.
+pub struct Evaluated {
+    pub fit: Fit,
+    pub errors: Vec<Vec<StepError>>,
+}
+
+struct Split {
+    train: Vec<Window>,
+    heldout: Vec<Window>,
+    short: Vec<Window>,
+}
+
+fn split(recordings: &Recordings, options: &Sim2RealOptions) -> Result<Split> {
+    let mut order: Vec<usize> = (0..recordings.tracks.len()).collect();
+    order.shuffle(&mut ChaCha8Rng::seed_from_u64(options.seed));
+    let every = options.heldout_every.max(2);
+    let (mut train_tracks, mut heldout_tracks) = (Vec::new(), Vec::new());
+    for (k, t) in order.into_iter().enumerate() {
+        if k % every == every - 1 {
+            heldout_tracks.push(t);
+        } else {
+            train_tracks.push(t);
+        }
+    }
+    let past = crate::sim::catalogue::MAX_DEAD_TIME_S;
+    let wb = options.default_wheelbase_m;
+    let long = |tracks: &[usize]| {
+        windows(
+            recordings,
+            tracks,
+            options.horizon_s,
+            options.stride_s,
+            past,
+            wb,
+        )
+    };
+    let (train, heldout) = (long(&train_tracks), long(&heldout_tracks));
+    let all: Vec<usize> = (0..recordings.tracks.len()).collect();
+    let short = windows(
+        recordings,
+        &all,
+        options.short_window_s,
+        options.short_window_s / 2.0,
+        past,
+        wb,
+    );
+    if train.is_empty() || heldout.is_empty() {
+        return Err(Error::invalid(
+            &recordings.source,
+            "tracks",
+            format!(
+                "need at least {every} tracks longer than {} s (the horizon plus 1 s for \
+                 denoising) to fit on some and hold others out; got {} tracks, {} training \
+                 and {} held-out windows",
+                options.horizon_s + 1.0,
+                recordings.tracks.len(),
+                train.len(),
+                heldout.len()
+            ),
+        ));
+    }
+    Ok(Split {
+        train,
+        heldout,
+        short,
+    })
+}
+
+/// Runs the whole pipeline; `progress` hears each stage.
+pub fn identify(
+    recordings: &Recordings,
+    options: &Sim2RealOptions,
+    progress: &(dyn Fn(&str) + Sync),
+) -> Result<Outcome> {
+    let plain = Backend::NdArray.device(false)?;
+    let autodiff = Backend::NdArray.device(true)?;
+    let split = split(recordings, options)?;
+    let (train_b, held_b, short_b) = (
+        batches(&split.train, &plain),
+        batches(&split.heldout, &plain),
+        batches(&split.short, &plain),
+    );
+    let heldout_errors = |f: &Fit| evaluate(f, &held_b, split.heldout.len(), &plain);
+    let nominal = |fit_wheelbase| Candidate {
+        effects: Vec::new(),
+        fit_wheelbase,
+    };
+    let fit_one = |candidate: &Candidate| -> Evaluated {
+        let fitted = fit(candidate, &train_b, &autodiff, &options.fit);
+        let errors = heldout_errors(&fitted);
+        Evaluated {
+            fit: fitted,
+            errors,
+        }
+    };
+
+    progress("baseline: nominal bicycle, declared wheelbase");
+    let baseline_fit = Fit::unfitted(nominal(false));
+    let baseline = Evaluated {
+        errors: heldout_errors(&baseline_fit),
+        fit: baseline_fit,
+    };
+    progress("nominal refit: wheelbase by gradient descent");
+    let mut refit = fit_one(&nominal(true));
+    standard_errors(&mut refit.fit, &train_b, &split.train, &plain);
+
+    let tried: Vec<Effect> = options
+        .effects
+        .iter()
+        .copied()
+        .filter(|e| !(options.commands_inferred && e.acts_on_commands()))
+        .collect();
+    progress(&format!("fitting {} candidate effects", tried.len()));
+    let singles: Vec<Evaluated> = tried
+        .par_iter()
+        .map(|&e| {
+            let mut out = fit_one(&Candidate {
+                effects: vec![e],
+                fit_wheelbase: true,
+            });
+            standard_errors(&mut out.fit, &train_b, &split.train, &plain);
+            progress(&format!("  fitted {e}"));
+            out
+        })
+        .collect();
+    let compare = |new: &Evaluated, reference: &Evaluated| {
+        Comparison::paired(&split.heldout, &reference.errors, &new.errors, options)
+    };
+    let mut ranked: Vec<(usize, Comparison)> = singles
+        .iter()
+        .enumerate()
+        .map(|(k, s)| (k, compare(s, &refit)))
+        .collect();
+    ranked.sort_by(|a, b| a.1.rmse_after_m.total_cmp(&b.1.rmse_after_m));
+
+    let mut chosen: Vec<(Evaluated, Comparison)> = Vec::new();
+    if let Some((best, comparison)) = ranked.first().filter(|(_, c)| c.significant) {
+        let first = Evaluated {
+            fit: singles[*best].fit.clone(),
+            errors: singles[*best].errors.clone(),
+        };
+        let first_effect = first.fit.candidate.effects[0];
+        // Pairs: the best effect with each runner-up that helped on its own.
+        let partners: Vec<Effect> = ranked[1..]
+            .iter()
+            .filter(|(_, c)| c.significant)
+            .take(2)
+            .map(|(k, _)| singles[*k].fit.candidate.effects[0])
+            .collect();
+        if !partners.is_empty() {
+            progress(&format!("{first_effect} helps; trying it in pairs"));
+        }
+        let pairs: Vec<Evaluated> = partners
+            .par_iter()
+            .map(|&e| {
+                fit_one(&Candidate {
+                    effects: vec![first_effect, e],
+                    fit_wheelbase: true,
+                })
+            })
+            .collect();
+        let best_pair = pairs
+            .into_iter()
+            .map(|p| {
+                let c = compare(&p, &first);
+                (p, c)
+            })
+            .filter(|(_, c)| c.significant)
+            .min_by(|a, b| a.1.rmse_after_m.total_cmp(&b.1.rmse_after_m));
+        chosen.push((first, comparison.clone()));
+        if let Some((mut pair, c)) = best_pair {
+            standard_errors(&mut pair.fit, &train_b, &split.train, &plain);
+            chosen.push((pair, c));
+        }
+    }
+
+    progress("locating the mismatch");
+    let short_errors = |f: &Fit| evaluate(f, &short_b, split.short.len(), &plain);
+    let period = split.heldout[0].period;
+    let before: Mismatch = locate(
+        recordings,
+        &baseline.errors,
+        period,
+        &split.short,
+        &short_errors(&baseline.fit),
+    );
+    let final_model = match chosen.last() {
+        Some((e, _)) => Evaluated {
+            fit: e.fit.clone(),
+            errors: e.errors.clone(),
+        },
+        None => Evaluated {
+            fit: refit.fit.clone(),
+            errors: refit.errors.clone(),
+        },
+    };
+    let after = locate(
+        recordings,
+        &final_model.errors,
+        period,
+        &split.short,
+        &short_errors(&final_model.fit),
+    );
+    let report = Report::new(
+        recordings,
+        options,
+        &split.train,
+        &split.heldout,
+        &baseline,
+        &refit,
+        &singles,
+        &ranked,
+        &chosen,
+        &final_model,
+        tried,
+        before,
+        after,
+    );
+    Ok(Outcome {
+        report,
+        heldout: split.heldout,
+        baseline,
+        final_model,
+    })
+}

@@ -1,0 +1,24 @@
+//! Sim-to-real: when the simulator and real recordings differ, locate the mismatch, name the
+//! physics the kinematic bicycle left out, fit it by gradient descent through the unrolled
+//! simulation, and show held-out error fall.
+//!
+//! Pipeline ([`identify`]): recordings → windows from denoised states → baseline (nominal
+//! bicycle, declared wheelbase) → nominal refit (wheelbase) → one fit per catalogue effect →
+//! parsimony selection on held-out tracks (pairs when one effect is not enough) → report.
+
+pub mod a9;
+
+pub mod fit;
+pub mod generator;
+pub mod identify;
+pub mod locate;
+pub mod plots;
+
+pub mod report;
+pub mod simulate;
+pub mod windows;
+
+pub use crate::sim::catalogue::{DynamicsFile, Effect, FittedTerm};
+pub use generator::{GeneratorConfig, SensorNoise, generate};
+pub use identify::{Outcome, Sim2RealOptions, identify};
+pub use report::Report;

@@ -1,0 +1,354 @@
+//! Loading vehicle recordings for sim-to-real identification: values, round trips, and one
+//! test per kind of bad input (each error must name the source, the line and the column).
+
+use rtr::data::{RecordedTrack, Recordings};
+
+const HEADER: &str = "track_id,t,x,y,heading,speed,accel_cmd,steer_cmd";
+
+/// Parses `text` and returns the error's Display text; panics if it parses.
+fn error(text: &str) -> String {
+    match Recordings::parse("rec.csv", text) {
+        Ok(r) => panic!("expected an error, parsed {} tracks", r.tracks.len()),
+        Err(e) => {
+            let message = e.to_string();
+            assert!(message.starts_with("rec.csv: "), "no source in: {message}");
+            message
+        }
+    }
+}
+
+/// Asserts that `message` contains every one of `parts`.
+fn assert_contains(message: &str, parts: &[&str]) {
+    for part in parts {
+        assert!(message.contains(part), "`{part}` not in: {message}");
+    }
+}
+
+/// A file with one good track `a` (period 0.1 s) and `row` as its third data row (line 4).
+fn with_row(row: &str) -> String {
+    format!("{HEADER}\na,0.0,0,0,0,1,0,0\na,0.1,0,0,0,1,0,0\n{row}\na,0.3,0,0,0,1,0,0\n")
+}
+
+fn assert_same(a: &RecordedTrack, b: &RecordedTrack) {
+    assert_eq!(a.id, b.id);
+    assert_eq!(a.period.to_bits(), b.period.to_bits());
+    assert_eq!(a.t, b.t);
+    assert_eq!(a.x, b.x);
+    assert_eq!(a.y, b.y);
+    assert_eq!(a.heading, b.heading);
+    assert_eq!(a.speed, b.speed);
+    assert_eq!(a.accel_cmd, b.accel_cmd);
+    assert_eq!(a.steer_cmd, b.steer_cmd);
+    assert_eq!(a.wheelbase, b.wheelbase);
+}
+
+const GOOD: &str = "\
+note,steer_cmd,accel_cmd,speed,heading,y,x,t,track_id,wheelbase
+first,0.01,0.5,10.0,0.1,2.0,1.0,0.0,car7,2.7
+x,0.0,0.0,0.0,-3.0,-1.0,5.0,1.00,truck,4.5
+,0.02,0.6,10.05,0.11,2.1,2.0,0.1,car7,2.7
+y,0.0,0.1,0.0,-3.0,-1.0,5.0,1.05,truck,4.5
+,0.03,0.7,10.1,0.12,2.2,3.0,0.2,car7,2.7005
+
+z,0.0,0.2,0.01,-3.0,-1.0,5.0,1.10,truck,4.5
+";
+
+#[test]
+fn good_file_with_interleaved_tracks_parses_to_the_right_values() {
+    let rec = Recordings::parse("good.csv", GOOD).unwrap();
+    assert_eq!(rec.source, "good.csv");
+    assert_eq!(rec.tracks.len(), 2);
+
+    let car = &rec.tracks[0];
+    assert_eq!(car.id, "car7");
+    assert_eq!(car.first_line, 2);
+    assert_eq!(car.len(), 3);
+    assert!(!car.is_empty());
+    assert_eq!(car.t, [0.0, 0.1, 0.2]);
+    assert_eq!(car.x, [1.0, 2.0, 3.0]);
+    assert_eq!(car.y, [2.0, 2.1, 2.2]);
+    assert_eq!(car.heading, [0.1, 0.11, 0.12]);
+    assert_eq!(car.speed, [10.0, 10.05, 10.1]);
+    assert_eq!(car.accel_cmd, [0.5, 0.6, 0.7]);
+    assert_eq!(car.steer_cmd, [0.01, 0.02, 0.03]);
+    assert_eq!(car.wheelbase, Some(2.7));
+    assert!((car.period - 0.1).abs() < 1e-12, "{}", car.period);
+    assert!((car.duration() - 0.2).abs() < 1e-12);
+
+    let truck = &rec.tracks[1];
+    assert_eq!(truck.id, "truck");
+    assert_eq!(truck.first_line, 3);
+    assert_eq!(truck.t, [1.0, 1.05, 1.1]);
+    assert_eq!(truck.heading, [-3.0; 3]);
+    assert_eq!(truck.speed, [0.0, 0.0, 0.01]);
+    assert_eq!(truck.accel_cmd, [0.0, 0.1, 0.2]);
+    assert_eq!(truck.wheelbase, Some(4.5));
+    assert!((truck.period - 0.05).abs() < 1e-12, "{}", truck.period);
+}
+
+#[test]
+fn wheelbase_is_optional() {
+    let rec = Recordings::parse("rec.csv", &with_row("a,0.2,0,0,0,1,0,0")).unwrap();
+    assert_eq!(rec.tracks.len(), 1);
+    assert_eq!(rec.tracks[0].wheelbase, None);
+    assert_eq!(rec.tracks[0].len(), 4);
+    assert!(rec.to_csv().starts_with(&format!("{HEADER}\n")));
+}
+
+#[test]
+fn to_csv_then_parse_round_trips_exactly() {
+    // Values with full f64 precision, a track id that needs quoting, different periods.
+    let mut text = format!("{HEADER},wheelbase\n");
+    for k in 0..50 {
+        let s = k as f64;
+        text.push_str(&format!(
+            "\"car, \"\"7\"\"\",{},{},{},{},{},{},{},2.845\n",
+            s * 0.1,
+            (s * 0.37).sin() * 123.456789,
+            -(s * 0.11).cos() / 3.0,
+            (s * 0.05).sin() * std::f64::consts::PI,
+            13.0 + s / 7.0,
+            (s * 0.3).sin() * 1.7,
+            (s * 0.2).cos() * 0.05,
+        ));
+        if k % 2 == 0 {
+            text.push_str(&format!(
+                "bus,{},{},0,{},{},{},-0.0001,12.5\n",
+                100.0 + s * 0.04 / 2.0,
+                s / 3.0,
+                -1.0 / 7.0,
+                0.1 * s,
+                -1.0 / 3.0
+            ));
+        }
+    }
+    let rec = Recordings::parse("gen.csv", &text).unwrap();
+    assert_eq!(rec.tracks.len(), 2);
+    assert_eq!(rec.tracks[0].id, "car, \"7\"");
+    assert_eq!(rec.tracks[1].id, "bus");
+
+    let csv = rec.to_csv();
+    assert!(csv.starts_with(&format!("{HEADER},wheelbase\n")));
+    let back = Recordings::parse("back.csv", &csv).unwrap();
+    assert_eq!(back.tracks.len(), rec.tracks.len());
+    for (a, b) in rec.tracks.iter().zip(&back.tracks) {
+        assert_same(a, b);
+    }
+    assert_eq!(back.to_csv(), csv);
+}
+
+#[test]
+fn save_then_load_round_trips() {
+    let rec = Recordings::parse("good.csv", GOOD).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("sub").join("rec.csv");
+    rec.save(&path).unwrap();
+    let back = Recordings::load(&path).unwrap();
+    assert_eq!(back.source, path.display().to_string());
+    for (a, b) in rec.tracks.iter().zip(&back.tracks) {
+        assert_same(a, b);
+    }
+}
+
+#[test]
+fn missing_file_names_the_path() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("nope.csv");
+    let message = Recordings::load(&path).unwrap_err().to_string();
+    assert_contains(&message, &[&path.display().to_string()]);
+}
+
+#[test]
+fn missing_columns_are_listed_with_the_expected_header() {
+    let message = error("track_id,t,x,y,speed,accel_cmd,extra\na,0,0,0,1,0,0\n");
+    assert_contains(
+        &message,
+        &["line 1", "`heading`", "`steer_cmd`", "missing", HEADER],
+    );
+}
+
+#[test]
+fn duplicate_column_is_rejected() {
+    let message = error(&format!("{HEADER},x\na,0,0,0,0,1,0,0,0\n"));
+    assert_contains(&message, &["line 1", "`x`", "twice"]);
+}
+
+#[test]
+fn empty_file_is_rejected() {
+    assert_contains(&error(""), &["line 1", "empty", HEADER]);
+    assert_contains(&error("  \n\n"), &["line 1", "empty"]);
+}
+
+#[test]
+fn header_without_rows_is_rejected() {
+    assert_contains(&error(&format!("{HEADER}\n")), &["no data rows"]);
+}
+
+#[test]
+fn unparsable_number_names_line_and_column() {
+    let message = error(&with_row("a,0.2,abc,0,0,1,0,0"));
+    assert_contains(&message, &["line 4", "`x`", "`abc`", "not a number"]);
+    let message = error(&with_row("a,0.2,0,,0,1,0,0"));
+    assert_contains(&message, &["line 4", "`y`", "empty"]);
+}
+
+#[test]
+fn nan_is_rejected() {
+    let message = error(&with_row("a,0.2,0,0,0,NaN,0,0"));
+    assert_contains(&message, &["line 4", "`speed`", "NaN", "finite"]);
+}
+
+#[test]
+fn infinity_is_rejected() {
+    let message = error(&with_row("a,0.2,0,0,0,1,-inf,0"));
+    assert_contains(&message, &["line 4", "`accel_cmd`", "infinite", "finite"]);
+}
+
+#[test]
+fn wrong_field_count_is_a_parse_error() {
+    let message = error(&with_row("a,0.2,0,0,0,1,0"));
+    assert_contains(&message, &["line 4", "7 fields", "header has 8"]);
+}
+
+#[test]
+fn empty_track_id_is_rejected() {
+    let message = error(&with_row(",0.2,0,0,0,1,0,0"));
+    assert_contains(&message, &["line 4", "`track_id`", "empty"]);
+}
+
+#[test]
+fn heading_in_degrees_is_rejected() {
+    let message = error(&with_row("a,0.2,0,0,90,1,0,0"));
+    assert_contains(
+        &message,
+        &["line 4", "`heading`", "90", "degrees", "radians"],
+    );
+    // Up to one turn (and a little) is fine: unwrapped headings.
+    Recordings::parse("rec.csv", &with_row("a,0.2,0,0,-6.29,1,0,0")).unwrap();
+}
+
+#[test]
+fn steering_wheel_angle_is_rejected() {
+    let message = error(&with_row("a,0.2,0,0,0,1,0,-1.5"));
+    assert_contains(
+        &message,
+        &[
+            "line 4",
+            "`steer_cmd`",
+            "-1.5",
+            "degrees",
+            "steering-wheel",
+            "road-wheel",
+        ],
+    );
+}
+
+#[test]
+fn speed_in_kmh_is_rejected() {
+    let message = error(&with_row("a,0.2,0,0,0,120,0,0"));
+    assert_contains(&message, &["line 4", "`speed`", "120", "km/h", "m/s"]);
+}
+
+#[test]
+fn negative_speed_is_rejected() {
+    let message = error(&with_row("a,0.2,0,0,0,-3,0,0"));
+    assert_contains(&message, &["line 4", "`speed`", "-3", "negative"]);
+    // Small negative speeds (estimator noise) are tolerated.
+    Recordings::parse("rec.csv", &with_row("a,0.2,0,0,0,-0.5,0,0")).unwrap();
+}
+
+#[test]
+fn implausible_acceleration_is_rejected() {
+    let message = error(&with_row("a,0.2,0,0,0,1,-35,0"));
+    assert_contains(&message, &["line 4", "`accel_cmd`", "-35", "m/s^2"]);
+}
+
+/// Like [`with_row`] but with a wheelbase column; `row` is line 4.
+fn with_wheelbase_row(row: &str) -> String {
+    format!(
+        "{HEADER},wheelbase\na,0.0,0,0,0,1,0,0,2.7\na,0.1,0,0,0,1,0,0,2.7\n{row}\n\
+         a,0.3,0,0,0,1,0,0,2.7\n"
+    )
+}
+
+#[test]
+fn wheelbase_in_millimetres_is_rejected() {
+    let message = error(&format!("{HEADER},wheelbase\na,0,0,0,0,1,0,0,2700\n"));
+    assert_contains(
+        &message,
+        &["line 2", "`wheelbase`", "2700", "millimetres", "metres"],
+    );
+    let message = error(&with_wheelbase_row("a,0.2,0,0,0,1,0,0,0.5"));
+    assert_contains(&message, &["line 4", "`wheelbase`", "0.5", "too small"]);
+}
+
+#[test]
+fn changing_wheelbase_is_rejected() {
+    let message = error(&with_wheelbase_row("a,0.2,0,0,0,1,0,0,2.9"));
+    assert_contains(
+        &message,
+        &["line 4", "`wheelbase`", "2.9", "2.7", "line 2", "constant"],
+    );
+    // Within 1 mm is the same wheelbase.
+    Recordings::parse("rec.csv", &with_wheelbase_row("a,0.2,0,0,0,1,0,0,2.7009")).unwrap();
+}
+
+#[test]
+fn wheelbase_on_some_rows_only_is_rejected() {
+    let message = error(&with_wheelbase_row("a,0.2,0,0,0,1,0,0,"));
+    assert_contains(&message, &["line 4", "`wheelbase`", "line 2", "every row"]);
+}
+
+#[test]
+fn non_increasing_time_is_rejected() {
+    let message = error(&with_row("a,0.1,0,0,0,1,0,0"));
+    assert_contains(
+        &message,
+        &["line 4", "`t`", "0.1", "line 3", "strictly increasing"],
+    );
+}
+
+#[test]
+fn time_gap_is_rejected() {
+    // Steps 0.1, 0.1, 0.3, 0.1: period 0.1, the gap ends on line 5.
+    let text = format!(
+        "{HEADER}\nb,0,0,0,0,1,0,0\nb,0.1,0,0,0,1,0,0\nb,0.2,0,0,0,1,0,0\nb,0.5,0,0,0,1,0,0\n\
+         b,0.6,0,0,0,1,0,0\n"
+    );
+    let message = error(&text);
+    assert_contains(
+        &message,
+        &[
+            "line 5",
+            "`t`",
+            "track `b`",
+            "0.5",
+            "line 4",
+            "period",
+            "0.1 s",
+            "gap",
+        ],
+    );
+}
+
+#[test]
+fn time_jitter_is_rejected() {
+    // A step of 0.108 s against a 0.1 s period (8% off).
+    let text = format!(
+        "{HEADER}\nb,0,0,0,0,1,0,0\nb,0.1,0,0,0,1,0,0\nb,0.2,0,0,0,1,0,0\nb,0.308,0,0,0,1,0,0\n\
+         b,0.408,0,0,0,1,0,0\nb,0.508,0,0,0,1,0,0\n"
+    );
+    let message = error(&text);
+    assert_contains(&message, &["line 5", "`t`", "0.308", "period", "jitter"]);
+    // 3% jitter is tolerated.
+    let ok = text.replace("0.308", "0.303").replace("0.408", "0.403");
+    let ok = ok.replace("0.508", "0.503");
+    Recordings::parse("rec.csv", &ok).unwrap();
+}
+
+#[test]
+fn single_sample_track_is_rejected() {
+    let text = format!("{HEADER}\na,0,0,0,0,1,0,0\na,0.1,0,0,0,1,0,0\nb,0,0,0,0,1,0,0\n");
+    let message = error(&text);
+    assert_contains(&message, &["track `b`", "line 4", "at least 2", "period"]);
+}
