@@ -7,7 +7,6 @@
 
 use std::time::Instant;
 
-use rtr::sim2real::generator::typical;
 use rtr::sim2real::{Effect, GeneratorConfig, Sim2RealOptions, generate, identify};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -38,13 +37,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let recordings = generate(&config, &device);
         let report = identify(&recordings, &Sim2RealOptions::default(), &|_| {})?.report;
         let truth = match &config.effect {
-            Some((e, v)) => format_params(*e, v),
+            Some((e, v)) => pairs(e.params().iter().map(|s| s.name).zip(v.iter().copied())),
             None => format!("wheelbase {} m", config.true_wheelbase_m),
         };
         let (found, fitted) = match report.findings.first() {
             Some(f) => (
                 f.effect.to_string(),
-                format_params(f.effect, &f.params.values().copied().collect::<Vec<_>>()),
+                pairs(f.params.iter().map(|(k, v)| (k.as_str(), *v))),
             ),
             None => (
                 "nothing".into(),
@@ -64,19 +63,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             }
         }
     }
-    let _ = typical;
     Ok(())
 }
 
-/// `name = value` pairs in catalogue order (`values` as the params map iterates, which is
-/// alphabetical, matches the catalogue for every effect).
-fn format_params(effect: Effect, values: &[f64]) -> String {
-    let mut names: Vec<&str> = effect.params().iter().map(|s| s.name).collect();
-    names.sort_unstable();
-    let mut pairs: Vec<(&str, f64)> = names.into_iter().zip(values.iter().copied()).collect();
-    pairs.sort_by_key(|(n, _)| effect.params().iter().position(|s| s.name == *n));
-    pairs
-        .iter()
+/// `name value, ...` for a table cell.
+fn pairs<'a>(values: impl Iterator<Item = (&'a str, f64)>) -> String {
+    values
         .map(|(n, v)| format!("{n} {v:.4}"))
         .collect::<Vec<_>>()
         .join(", ")
