@@ -117,6 +117,29 @@ fn il_lowers_its_loss() {
 }
 
 #[test]
+fn il_in_identified_dynamics_trains_and_the_physics_is_in_its_rollouts() {
+    // A dynamics file as `rtr sim2real --save-dynamics` writes it: the terms keep memory
+    // channels through the training rollout and its gradients.
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("dynamics.toml");
+    std::fs::write(
+        &path,
+        "[[terms]]\neffect = \"dead_time\"\nparams = { delay_s = 0.6 }\n\n\
+         [[terms]]\neffect = \"accel_lag\"\nparams = { tau_s = 0.8 }\n",
+    )
+    .expect("written");
+    loss_falls_with("IL", "", "", |c| c.dynamics = Some(path.clone()));
+    let plain = train(tiny("IL", "", ""), &dir.path().join("plain"), false, None);
+    let mut config = tiny("IL", "", "");
+    config.dynamics = Some(path.clone());
+    let lagged = train(config, &dir.path().join("lagged"), false, None);
+    assert_ne!(
+        plain[0].il_loss, lagged[0].il_loss,
+        "the terms change the rollout"
+    );
+}
+
+#[test]
 fn rl_lowers_its_loss() {
     loss_falls("RL", "alpha = 0.5", "");
 }

@@ -8,7 +8,7 @@ use burn::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::terms::{
-    AccelLag, DeadTime, Drag, Sideslip, SteerLag, SteerRateLimit, Understeer, parameter,
+    Channel, DeadTime, Drag, FirstOrderLag, Sideslip, SteerRateLimit, Understeer, parameter,
 };
 use super::{Dynamics, DynamicsTerm};
 use crate::error::{Error, Result};
@@ -125,8 +125,14 @@ impl Effect {
     pub fn term(self, params: &[Tensor<2>], dt: f64) -> Box<dyn DynamicsTerm> {
         let p = |k: usize| params[k].clone();
         match self {
-            Effect::AccelLag => Box::new(AccelLag { tau_s: p(0) }),
-            Effect::SteerLag => Box::new(SteerLag { tau_s: p(0) }),
+            Effect::AccelLag => Box::new(FirstOrderLag {
+                channel: Channel::Accel,
+                tau_s: p(0),
+            }),
+            Effect::SteerLag => Box::new(FirstOrderLag {
+                channel: Channel::Steer,
+                tau_s: p(0),
+            }),
             Effect::DeadTime => Box::new(DeadTime::new(p(0), MAX_DEAD_TIME_S, dt)),
             Effect::Drag => Box::new(Drag {
                 c_d: p(0),

@@ -25,4 +25,4 @@ pub use rollout::{
     rollout_from,
 };
 pub use state::{Controls, VehicleState, WHEELBASE_RATIO, wheelbase_of};
-pub use terms::{AccelLag, DeadTime, Drag, Sideslip, SteerLag, SteerRateLimit, Understeer};
+pub use terms::{Channel, DeadTime, Drag, FirstOrderLag, Sideslip, SteerRateLimit, Understeer};

@@ -35,22 +35,55 @@ fn first_order_lag(
     (end, u + gap * mean_share)
 }
 
-/// Powertrain/brake response: the applied acceleration follows the command with a
-/// first-order lag, time constant `tau_s`.
+/// Which control a term acts on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Channel {
+    Accel,
+    Steer,
+}
+
+impl Channel {
+    fn of(self, controls: &Controls) -> Tensor<2> {
+        match self {
+            Channel::Accel => controls.accel.clone(),
+            Channel::Steer => controls.steer.clone(),
+        }
+    }
+
+    fn replaced(self, controls: Controls, value: Tensor<2>) -> Controls {
+        match self {
+            Channel::Accel => Controls {
+                accel: value,
+                ..controls
+            },
+            Channel::Steer => Controls {
+                steer: value,
+                ..controls
+            },
+        }
+    }
+}
+
+/// Actuator response: the applied control follows the command with a first-order lag, time
+/// constant `tau_s` (`accel_lag`: powertrain and brakes; `steer_lag`: steering actuator).
 #[derive(Debug, Clone)]
-pub struct AccelLag {
+pub struct FirstOrderLag {
+    pub channel: Channel,
     pub tau_s: Tensor<2>,
 }
 
-impl DynamicsTerm for AccelLag {
+impl DynamicsTerm for FirstOrderLag {
     fn name(&self) -> &str {
-        "accel_lag"
+        match self.channel {
+            Channel::Accel => "accel_lag",
+            Channel::Steer => "steer_lag",
+        }
     }
     fn memory_channels(&self) -> usize {
         1
     }
     fn init_memory(&self, applied: &Controls, _past: &[Controls]) -> Vec<Tensor<2>> {
-        vec![applied.accel.clone()]
+        vec![self.channel.of(applied)]
     }
     fn actuate(
         &self,
@@ -58,44 +91,9 @@ impl DynamicsTerm for AccelLag {
         memory: &[Tensor<2>],
         dt: f64,
     ) -> (Controls, Vec<Tensor<2>>) {
-        let (end, mean) = first_order_lag(controls.accel, memory[0].clone(), &self.tau_s, dt);
-        let applied = Controls {
-            accel: mean,
-            steer: controls.steer,
-        };
-        (applied, vec![end])
-    }
-}
-
-/// Steering actuator response: the road-wheel angle follows the command with a first-order
-/// lag, time constant `tau_s`.
-#[derive(Debug, Clone)]
-pub struct SteerLag {
-    pub tau_s: Tensor<2>,
-}
-
-impl DynamicsTerm for SteerLag {
-    fn name(&self) -> &str {
-        "steer_lag"
-    }
-    fn memory_channels(&self) -> usize {
-        1
-    }
-    fn init_memory(&self, applied: &Controls, _past: &[Controls]) -> Vec<Tensor<2>> {
-        vec![applied.steer.clone()]
-    }
-    fn actuate(
-        &self,
-        controls: Controls,
-        memory: &[Tensor<2>],
-        dt: f64,
-    ) -> (Controls, Vec<Tensor<2>>) {
-        let (end, mean) = first_order_lag(controls.steer, memory[0].clone(), &self.tau_s, dt);
-        let applied = Controls {
-            accel: controls.accel,
-            steer: mean,
-        };
-        (applied, vec![end])
+        let command = self.channel.of(&controls);
+        let (end, mean) = first_order_lag(command, memory[0].clone(), &self.tau_s, dt);
+        (self.channel.replaced(controls, mean), vec![end])
     }
 }
 
@@ -332,7 +330,10 @@ mod tests {
         // Exact: v(t) = v0 + u (t - tau (1 - e^{-t/tau})).
         let exact = 20.0 + 2.0 * (1.0 - tau * (1.0 - (-1.0f64 / tau).exp()));
         for (dt, steps) in [(0.5, 2), (0.1, 10), (0.02, 50)] {
-            let d = plain(dt).with_term(Box::new(AccelLag { tau_s: scalar(tau) }));
+            let d = plain(dt).with_term(Box::new(FirstOrderLag {
+                channel: Channel::Accel,
+                tau_s: scalar(tau),
+            }));
             let v = speed_after(&d, 2.0, steps);
             assert!((v - exact).abs() < 1e-4, "dt {dt}: {v} vs {exact}");
         }

@@ -134,7 +134,7 @@ pub struct NominalRefit {
 }
 
 #[derive(Debug, Clone, Serialize)]
-pub struct Candidate {
+pub struct CandidateResult {
     pub effect: Effect,
     pub params: BTreeMap<String, Estimate>,
     pub heldout_pos_rmse_m: f64,
@@ -176,11 +176,13 @@ pub struct Report {
     pub training_windows: usize,
     pub heldout_windows: usize,
     pub heldout_tracks: usize,
+    /// Tracks that declare no wheelbase (they get `options.default_wheelbase_m`).
+    pub tracks_without_wheelbase: usize,
     pub options: Sim2RealOptions,
     pub baseline: Baseline,
     pub nominal_refit: NominalRefit,
     pub mismatch: Mismatch,
-    pub candidates: Vec<Candidate>,
+    pub candidates: Vec<CandidateResult>,
     pub findings: Vec<Finding>,
     /// Effects that cannot be identified from these recordings, and why.
     pub not_identifiable: Vec<(Effect, String)>,
@@ -211,7 +213,7 @@ impl Report {
             .map(|(k, c)| {
                 let (_, effects) = estimates(&singles[*k].fit);
                 let (effect, params) = effects.into_iter().next().expect("one effect");
-                Candidate {
+                CandidateResult {
                     effect,
                     params,
                     heldout_pos_rmse_m: c.rmse_after_m,
@@ -261,13 +263,16 @@ impl Report {
             tracks: recordings.tracks.len(),
             training_windows: train.len(),
             heldout_windows: heldout.len(),
-            heldout_tracks: {
-                let mut t: Vec<usize> = heldout.iter().map(|w| w.track).collect();
-                t.dedup();
-                t.sort_unstable();
-                t.dedup();
-                t.len()
-            },
+            heldout_tracks: heldout
+                .iter()
+                .map(|w| w.track)
+                .collect::<std::collections::BTreeSet<_>>()
+                .len(),
+            tracks_without_wheelbase: recordings
+                .tracks
+                .iter()
+                .filter(|t| t.wheelbase.is_none())
+                .count(),
             options: options.clone(),
             baseline: Baseline {
                 heldout_pos_rmse_m: baseline_rmse,
@@ -316,6 +321,12 @@ impl Report {
             self.heldout_windows,
             self.options.horizon_s
         )];
+        if self.tracks_without_wheelbase > 0 {
+            lines.push(format!(
+                "{} tracks declare no wheelbase: {} m assumed (the refit scales it)",
+                self.tracks_without_wheelbase, self.options.default_wheelbase_m
+            ));
+        }
         lines.push(format!(
             "baseline (nominal bicycle, declared wheelbase): held-out position RMSE {:.3} m \
              (along {:.3} m, across {:.3} m, heading {:.4} rad, speed {:.3} m/s)",
