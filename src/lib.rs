@@ -7,6 +7,7 @@ pub mod backend;
 pub mod data;
 pub mod driver;
 pub mod error;
+pub mod eval;
 pub mod geometry;
 pub mod io;
 pub mod map;

@@ -325,3 +325,99 @@ fn sim2real_names_the_line_of_a_bad_recording() {
     assert!(err.contains("line 3") && err.contains("heading"), "{err}");
     assert!(!dir.path().join("r.json").exists());
 }
+
+#[test]
+fn eval_prints_the_table_row_and_writes_the_documented_json() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let run_file = dir.path().join("tiny.toml");
+    std::fs::write(
+        &run_file,
+        "method = \"IL\"\nseed = 3\n[optimizer]\nlearning_rate = 1e-3\nepochs = 1\n\
+         epoch_scenes = 2\n[imitation]\nminibatch = 2\n[data]\nnominal_limit = 4\n\
+         max_rollout_steps = 4\n[model]\nhidden = 16\nlane_layers = 1\ninteraction_rounds = 1\n\
+         history_blocks = 1\nhead_hidden = [16]\n",
+    )
+    .expect("write");
+    let run = dir.path().join("run");
+    let trained = rtr(&[
+        "train",
+        "--config",
+        run_file.to_str().unwrap(),
+        "--out",
+        run.to_str().unwrap(),
+    ]);
+    assert!(
+        trained.status.success(),
+        "{}",
+        String::from_utf8_lossy(&trained.stderr)
+    );
+    let out_dir = dir.path().join("eval");
+    let out = rtr(&[
+        "eval",
+        "--checkpoint",
+        run.to_str().unwrap(),
+        "--set",
+        "nominal",
+        "--resamples",
+        "50",
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let row = stdout
+        .lines()
+        .find(|l| l.starts_with("| IL |"))
+        .expect("an IL row");
+    // Method + 9 nominal metrics.
+    assert_eq!(row.matches('|').count(), 11, "{row}");
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out_dir.join("results.json")).expect("results.json"))
+            .expect("JSON");
+    let nominal = &json["methods"]["IL"]["nominal"];
+    for key in [
+        "collision_pct",
+        "offroad_pct",
+        "fde_m",
+        "ate_m",
+        "cte_m",
+        "jsd_acc",
+        "jsd_speed",
+        "jsd_lat",
+        "jsd_lead",
+    ] {
+        assert!(nominal[key].is_number(), "{key}: {nominal}");
+        assert!(nominal[format!("{key}_ci")].is_number(), "{key}_ci");
+    }
+    assert_eq!(nominal["scenes"], 100);
+    for file in ["table.md", "histograms_il.svg", "training_curves.svg"] {
+        assert!(out_dir.join(file).is_file(), "{file} missing");
+    }
+}
+
+#[test]
+fn eval_names_what_is_wrong_with_its_arguments() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = rtr(&["eval", "--checkpoint", dir.path().to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("no policy.bpk"),
+        "{err}"
+    );
+    let out = rtr(&["eval", "--idm", "--set", "nominal,highway"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("unknown scene set `highway`"),
+        "{err}"
+    );
+    let out = rtr(&["eval"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("--checkpoint"),
+        "{err}"
+    );
+}

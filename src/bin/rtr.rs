@@ -55,6 +55,9 @@ enum Command {
     /// Train a policy from a run file (experiments/*/*.toml): BC, IL, RL, RL-Shaped, BC+RL,
     /// RTR, KL-L or KL-R. Writes OUT/curves.csv, OUT/config.toml and OUT/checkpoints/.
     Train(TrainArgs),
+    /// Evaluate trained policies on the nominal (real A9 test), long-tail and OOD sets: prints
+    /// the paper's table (Markdown, one row per checkpoint) and writes JSON and figures.
+    Eval(EvalArgs),
     /// Sim-to-real: locate where the simulator and vehicle recordings differ, name the physics
     /// the bicycle model left out, fit it and show held-out error before and after.
     Sim2real(Sim2RealArgs),
@@ -63,6 +66,37 @@ enum Command {
         #[command(subcommand)]
         command: RecordingsCommand,
     },
+}
+
+#[derive(Args)]
+struct EvalArgs {
+    /// A finished run folder (runs/<name>, models/<method>), a checkpoints/iter-* folder or a
+    /// policy.bpk beside its run's config.toml. Repeat for more rows.
+    #[arg(long = "checkpoint")]
+    checkpoints: Vec<PathBuf>,
+    /// Also evaluate the IDM + lane-keeping reference driver (not learned).
+    #[arg(long)]
+    idm: bool,
+    /// Scene sets, comma-separated: nominal, longtail, ood.
+    #[arg(long, value_delimiter = ',', default_value = "nominal")]
+    set: Vec<String>,
+    /// Scenarios from `rtr scenarios generate` (its eval/ and ood/); default: draw the
+    /// default sets now (about a minute).
+    #[arg(long)]
+    scenarios: Option<PathBuf>,
+    /// Write results.json, table.md and the figures here.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Bootstrap resamples over scenes for the +- intervals.
+    #[arg(long, default_value_t = 1000)]
+    resamples: usize,
+    /// Scenes per tensor batch.
+    #[arg(long, default_value_t = 16)]
+    batch: usize,
+    #[arg(long, default_value_t = Backend::NdArray)]
+    backend: Backend,
+    #[command(flatten)]
+    data: DataArgs,
 }
 
 #[derive(Args)]
@@ -128,6 +162,10 @@ struct TrainArgs {
     /// Physics terms from `rtr sim2real --save-dynamics`, replacing the run file's `dynamics`.
     #[arg(long)]
     dynamics: Option<PathBuf>,
+    /// Long-tail training scenarios from `rtr scenarios generate` (its train/), replacing the
+    /// run file's `data.longtail_dir` (saves drawing them at start).
+    #[arg(long)]
+    scenarios: Option<PathBuf>,
     #[command(flatten)]
     data: DataArgs,
 }
@@ -396,6 +434,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::Bench { command } => bench(command),
         Command::Scenarios { command } => scenarios(command),
         Command::Train(args) => train(args),
+        Command::Eval(args) => eval(args),
         Command::Sim2real(args) => sim2real(args),
         Command::Recordings {
             command:
@@ -407,6 +446,51 @@ fn run(cli: Cli) -> Result<()> {
                 },
         } => generate_recordings(&effect, seed, tracks, &out),
     }
+}
+
+fn eval(args: EvalArgs) -> Result<()> {
+    use rtr::eval::study::{Entry, evaluate_entries, write_study};
+    use rtr::eval::{EvalConfig, EvalSet, TrainedPolicy, load_sets, markdown_table};
+    if args.checkpoints.is_empty() && !args.idm {
+        return Err(Error::InvalidArgument(
+            "nothing to evaluate: pass --checkpoint DIR (repeatable) and/or --idm".into(),
+        ));
+    }
+    let sets = args
+        .set
+        .iter()
+        .map(|s| EvalSet::parse(s.trim()))
+        .collect::<Result<Vec<_>>>()?;
+    let device = args.backend.device(false)?;
+    let mut entries = args
+        .checkpoints
+        .iter()
+        .map(|c| TrainedPolicy::load(c, &device).map(|t| Entry::Trained(Box::new(t))))
+        .collect::<Result<Vec<_>>>()?;
+    if args.idm {
+        entries.push(Entry::idm());
+    }
+    let dataset = args.data.load()?;
+    let scenes = load_sets(&dataset, args.scenarios.as_deref(), &sets)?;
+    let config = EvalConfig {
+        batch: args.batch,
+        resamples: args.resamples,
+        ..EvalConfig::default()
+    };
+    let progress = indicatif::ProgressBar::new(0).with_style(
+        indicatif::ProgressStyle::with_template(
+            "eval [{elapsed_precise}] {bar:30} {pos}/{len} {msg}",
+        )
+        .map_err(|e| Error::InvalidArgument(format!("progress template: {e}")))?,
+    );
+    let results = evaluate_entries(&entries, &scenes, &device, &config, &progress)?;
+    progress.finish_and_clear();
+    print!("{}", markdown_table(&results, &sets));
+    if let Some(out) = &args.out {
+        let written = write_study(out, &entries, &results, &scenes, &device)?;
+        println!("wrote {} files to {}", written.len(), out.display());
+    }
+    Ok(())
 }
 
 fn sim2real(args: Sim2RealArgs) -> Result<()> {
@@ -506,6 +590,9 @@ fn train(args: TrainArgs) -> Result<()> {
     let mut config = rtr::train::TrainConfig::from_toml_file(&args.config)?;
     if let Some(path) = &args.dynamics {
         config.dynamics = Some(path.clone());
+    }
+    if let Some(dir) = &args.scenarios {
+        config.data.longtail_dir = Some(dir.clone());
     }
     let out = args.out.clone().unwrap_or_else(|| {
         let stem = args

@@ -249,6 +249,20 @@ pub fn generate_sets(
     Ok(sets)
 }
 
+/// Every `*.json` scenario in `dir`, in file-name order.
+pub fn load_scenario_dir(dir: &Path) -> Result<Vec<ConcreteScenario>> {
+    let mut paths: Vec<_> = std::fs::read_dir(dir)
+        .map_err(|e| Error::io(dir, e))?
+        .filter_map(|entry| entry.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "json"))
+        .collect();
+    paths.sort();
+    paths
+        .iter()
+        .map(|p| ConcreteScenario::from_json_file(p))
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -17,7 +17,7 @@ mod sample;
 pub use behaviour::{Action, Direction, Phase, Trigger};
 pub use catalogue::{
     DEFAULT_SEED, GenerateConfig, GeneratedSets, builtin_families, family_seed, generate_sets,
-    load_families,
+    load_families, load_scenario_dir,
 };
 pub use concrete::{
     ConcreteScenario, ReferenceRun, ScenarioAgent, ScenarioHero, ScenarioSet, hero_scripts,

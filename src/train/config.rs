@@ -10,7 +10,8 @@ use crate::backend::Backend;
 use crate::error::{Error, Result};
 use crate::io::parse_toml;
 use crate::model::{ActionMode, ModelConfig};
-use crate::sim::ActionLimits;
+use crate::sim::catalogue::DynamicsFile;
+use crate::sim::{ActionLimits, Dynamics};
 
 /// The learning methods of the paper's study (section 4) and its imitation-signal ablation.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -338,6 +339,18 @@ impl TrainConfig {
             *dynamics = path.parent().unwrap_or(Path::new(".")).join(&*dynamics);
         }
         Ok(config)
+    }
+
+    /// The simulator this run trains (and is evaluated) in: the paper's bicycle at dt = 0.5 s
+    /// with the run's action limits, plus the physics terms of its `dynamics` file, whose
+    /// parameters live on `device`.
+    pub fn dynamics(&self, device: &burn::prelude::Device) -> Result<Dynamics> {
+        let mut dynamics = Dynamics::bicycle(0.5);
+        dynamics.limits = Some(self.limits);
+        if let Some(path) = &self.dynamics {
+            dynamics = DynamicsFile::load(path)?.apply(dynamics, device);
+        }
+        Ok(dynamics)
     }
 
     pub fn from_toml_str(text: &str, source_name: &str) -> Result<Self> {

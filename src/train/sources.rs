@@ -4,8 +4,6 @@
 //! A draw of K initial states becomes [`Part`]s: scenes that can share one tensor batch (same
 //! kind, same window), since long-tail families run longer than the nominal 6 s window.
 
-use std::path::Path;
-
 use rand::Rng;
 
 use super::config::DataConfig;
@@ -13,6 +11,7 @@ use crate::data::{A9Dataset, SceneConfig, TrafficStatistics};
 use crate::error::{Error, Result};
 use crate::scenario::{
     ConcreteScenario, GenerateConfig, ScenarioSet, builtin_families, generate_sets, load_families,
+    load_scenario_dir,
 };
 use crate::scene::Scene;
 
@@ -149,18 +148,4 @@ impl TrainingData {
             .chain(longtail.into_iter().map(|(_, p)| p))
             .collect()
     }
-}
-
-/// Every `*.json` scenario in `dir`, in file-name order.
-fn load_scenario_dir(dir: &Path) -> Result<Vec<ConcreteScenario>> {
-    let mut paths: Vec<_> = std::fs::read_dir(dir)
-        .map_err(|e| Error::io(dir, e))?
-        .filter_map(|entry| entry.ok().map(|e| e.path()))
-        .filter(|p| p.extension().is_some_and(|e| e == "json"))
-        .collect();
-    paths.sort();
-    paths
-        .iter()
-        .map(|p| ConcreteScenario::from_json_file(p))
-        .collect()
 }

@@ -23,7 +23,6 @@ use std::time::Instant;
 use burn::module::Module;
 use burn::optim::{AdamWConfig, GradientsParams, ModuleOptimizer};
 
-use crate::sim::catalogue::DynamicsFile;
 use burn::prelude::*;
 use indicatif::ProgressBar;
 use rand::SeedableRng;
@@ -291,11 +290,7 @@ impl<'d> Trainer<'d> {
         } else {
             Curves::new(curves_path)
         };
-        let mut dynamics = Dynamics::bicycle(0.5);
-        dynamics.limits = Some(config.limits);
-        if let Some(path) = &config.dynamics {
-            dynamics = DynamicsFile::load(path)?.apply(dynamics, &main.clone().inner());
-        }
+        let dynamics = config.dynamics(&main.clone().inner())?;
         Ok(Self {
             caches: devices.iter().map(|_| MapCaches::default()).collect(),
             data,

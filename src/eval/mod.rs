@@ -1,0 +1,32 @@
+//! Evaluation (paper section 4 and appendix "Metrics"): closed-loop rollouts of a policy on
+//! the nominal, long-tail and OOD sets, the paper's metrics with bootstrap intervals, the
+//! results tables and the plots.
+//!
+//! - [`histogram`], [`features`], [`reconstruction`]: the measurements;
+//! - [`metrics`]: per-scene tallies and the metrics on them; [`bootstrap`]: their intervals;
+//! - [`tally`]: a rollout to tallies; [`sets`], [`evaluate`]: scene sets and the evaluation.
+
+pub mod bootstrap;
+pub mod evaluate;
+pub mod features;
+pub mod histogram;
+pub mod metrics;
+pub mod plots;
+pub mod reconstruction;
+pub mod report;
+pub mod sets;
+pub mod study;
+pub mod tally;
+pub mod trained;
+
+pub use bootstrap::Estimate;
+pub use evaluate::{
+    EvalConfig, EvalPolicy, IdmBaseline, SetResult, evaluate, evaluate_tallies, summarise,
+};
+pub use features::Feature;
+pub use histogram::{Histogram, jensen_shannon};
+pub use metrics::{Metric, SceneTally};
+pub use report::{MethodResult, markdown_table, results_json};
+pub use sets::{EvalScenes, EvalSet, load_sets};
+pub use tally::tally_rollout;
+pub use trained::TrainedPolicy;

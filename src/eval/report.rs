@@ -1,0 +1,189 @@
+//! The paper's tables from evaluated methods: one Markdown row per method (the columns of the
+//! requested sets) and `results.json` with `methods.<METHOD>.<SET>.<METRIC>` and
+//! `<METRIC>_ci` (the bootstrap half-width); metrics a set cannot have (reconstruction and
+//! JSD on generated sets, which have no human log) are `null`.
+
+use serde_json::{Map, Value, json};
+
+use super::evaluate::SetResult;
+use super::metrics::Metric;
+use super::sets::EvalSet;
+
+/// One method's evaluation on some sets.
+#[derive(Debug, Clone)]
+pub struct MethodResult {
+    /// The table's row name (e.g. `RTR`).
+    pub method: String,
+    /// Where its policy came from.
+    pub checkpoint: String,
+    pub sets: Vec<SetResult>,
+}
+
+impl MethodResult {
+    pub fn set(&self, set: EvalSet) -> Option<&SetResult> {
+        self.sets.iter().find(|s| s.set == set)
+    }
+}
+
+/// The metrics reported for a set: all of them where logs exist, else the infraction rates.
+pub fn columns(set: EvalSet) -> Vec<Metric> {
+    Metric::ALL
+        .into_iter()
+        .filter(|m| set.has_logs() || !m.needs_log())
+        .collect()
+}
+
+/// `{scenes, agents, <metric>: value|null, <metric>_ci: half-width|null, ...}`.
+pub fn set_json(r: &SetResult) -> Value {
+    let mut o = Map::new();
+    o.insert("scenes".into(), json!(r.scenes));
+    o.insert("agents".into(), json!(r.agents));
+    for m in Metric::ALL {
+        let e = r.get(m);
+        o.insert(m.key(), json!(e.map(|e| e.value)));
+        o.insert(format!("{}_ci", m.key()), json!(e.map(|e| e.ci)));
+    }
+    Value::Object(o)
+}
+
+/// `{"methods": {METHOD: {SET: {...}}}, "checkpoints": {METHOD: path}}`.
+pub fn results_json(methods: &[MethodResult]) -> Value {
+    let mut by_method = Map::new();
+    let mut checkpoints = Map::new();
+    for m in methods {
+        let sets: Map<String, Value> = m
+            .sets
+            .iter()
+            .map(|s| (s.set.name().to_string(), set_json(s)))
+            .collect();
+        by_method.insert(m.method.clone(), Value::Object(sets));
+        checkpoints.insert(m.method.clone(), json!(m.checkpoint));
+    }
+    json!({ "methods": by_method, "checkpoints": checkpoints })
+}
+
+/// The digits a metric is shown with.
+fn decimals(m: Metric) -> usize {
+    match m {
+        Metric::CollisionPct | Metric::OffroadPct => 1,
+        Metric::FdeM | Metric::AteM | Metric::CteM => 2,
+        Metric::Jsd(_) => 3,
+    }
+}
+
+fn cell(r: Option<&SetResult>, m: Metric) -> String {
+    match r.and_then(|r| r.get(m)) {
+        Some(e) => format!("{:.d$} ± {:.d$}", e.value, e.ci, d = decimals(m)),
+        None => "–".into(),
+    }
+}
+
+fn header_of(set: EvalSet, m: Metric, sets: &[EvalSet]) -> String {
+    if sets.len() == 1 {
+        m.header()
+    } else {
+        format!("{} {}", set.name(), m.header())
+    }
+}
+
+/// The Markdown header and separator for `sets`.
+pub fn table_header(sets: &[EvalSet]) -> String {
+    let headers: Vec<String> = sets
+        .iter()
+        .flat_map(|&s| columns(s).into_iter().map(move |m| (s, m)))
+        .map(|(s, m)| header_of(s, m, sets))
+        .collect();
+    format!(
+        "| Method | {} |\n|---|{}\n",
+        headers.join(" | "),
+        "---|".repeat(headers.len())
+    )
+}
+
+/// One Markdown row: the method's cells for `sets`.
+pub fn table_row(m: &MethodResult, sets: &[EvalSet]) -> String {
+    let cells: Vec<String> = sets
+        .iter()
+        .flat_map(|&s| columns(s).into_iter().map(move |c| (s, c)))
+        .map(|(s, c)| cell(m.set(s), c))
+        .collect();
+    format!("| {} | {} |\n", m.method, cells.join(" | "))
+}
+
+/// The whole table.
+pub fn markdown_table(methods: &[MethodResult], sets: &[EvalSet]) -> String {
+    let mut out = table_header(sets);
+    for m in methods {
+        out.push_str(&table_row(m, sets));
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::eval::bootstrap::Estimate;
+    use crate::eval::metrics::SceneTally;
+
+    fn result(set: EvalSet, collision: f64) -> SetResult {
+        SetResult {
+            set,
+            scenes: 3,
+            agents: 10,
+            metrics: Metric::ALL
+                .into_iter()
+                .map(|m| {
+                    let e = (set.has_logs() || !m.needs_log()).then_some(Estimate {
+                        value: if m == Metric::CollisionPct {
+                            collision
+                        } else {
+                            1.0
+                        },
+                        ci: 0.5,
+                    });
+                    (m, e)
+                })
+                .collect(),
+            total: SceneTally::default(),
+        }
+    }
+
+    #[test]
+    fn json_has_every_metric_and_its_interval() {
+        let m = MethodResult {
+            method: "RTR".into(),
+            checkpoint: "models/rtr".into(),
+            sets: vec![
+                result(EvalSet::Nominal, 2.0),
+                result(EvalSet::Longtail, 7.5),
+            ],
+        };
+        let j = results_json(&[m]);
+        assert_eq!(j["methods"]["RTR"]["nominal"]["collision_pct"], 2.0);
+        assert_eq!(j["methods"]["RTR"]["nominal"]["jsd_lead_ci"], 0.5);
+        assert_eq!(j["methods"]["RTR"]["longtail"]["collision_pct"], 7.5);
+        assert!(j["methods"]["RTR"]["longtail"]["fde_m"].is_null());
+        assert_eq!(j["checkpoints"]["RTR"], "models/rtr");
+    }
+
+    #[test]
+    fn table_has_one_column_per_metric_of_each_set() {
+        let m = MethodResult {
+            method: "IL".into(),
+            checkpoint: String::new(),
+            sets: vec![
+                result(EvalSet::Nominal, 2.0),
+                result(EvalSet::Longtail, 7.5),
+            ],
+        };
+        let sets = [EvalSet::Nominal, EvalSet::Longtail];
+        let table = markdown_table(&[m], &sets);
+        let lines: Vec<&str> = table.lines().collect();
+        assert_eq!(lines.len(), 3);
+        // Method + 9 nominal + 2 long-tail columns.
+        assert_eq!(lines[0].matches('|').count(), 13);
+        assert_eq!(lines[2].matches('|').count(), 13);
+        assert!(lines[0].contains("longtail Col (%)"));
+        assert!(lines[2].contains("7.5 ± 0.5"));
+    }
+}

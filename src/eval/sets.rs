@@ -1,0 +1,129 @@
+//! The scene sets of the paper's tables: the real A9 test split (nominal), the long-tail
+//! evaluation scenarios (drawn from the training families, disjoint from training draws) and
+//! the out-of-distribution scenarios (held-out families).
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::data::{A9Dataset, SceneConfig, TrafficStatistics};
+use crate::error::{Error, Result};
+use crate::scenario::{
+    ConcreteScenario, GenerateConfig, ScenarioSet, builtin_families, generate_sets, load_families,
+    load_scenario_dir,
+};
+use crate::scene::Scene;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum EvalSet {
+    Nominal,
+    Longtail,
+    Ood,
+}
+
+impl EvalSet {
+    pub const ALL: [EvalSet; 3] = [EvalSet::Nominal, EvalSet::Longtail, EvalSet::Ood];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            EvalSet::Nominal => "nominal",
+            EvalSet::Longtail => "longtail",
+            EvalSet::Ood => "ood",
+        }
+    }
+
+    pub fn parse(text: &str) -> Result<Self> {
+        Self::ALL
+            .into_iter()
+            .find(|s| s.name() == text)
+            .ok_or_else(|| {
+                Error::InvalidArgument(format!(
+                    "unknown scene set `{text}`: expected nominal, longtail or ood"
+                ))
+            })
+    }
+
+    /// Real scenes whose controlled agents have logged futures (reconstruction and JSD
+    /// metrics apply); the generated sets have none.
+    pub fn has_logs(self) -> bool {
+        self == EvalSet::Nominal
+    }
+}
+
+/// One set's scenes, and for generated sets the scenarios behind them (their hero scripts).
+pub struct EvalScenes {
+    pub set: EvalSet,
+    pub scenes: Vec<Scene>,
+    /// Empty for the nominal set; else `scenarios[k]` built `scenes[k]`.
+    pub scenarios: Vec<ConcreteScenario>,
+}
+
+impl EvalScenes {
+    /// The A9 test split (the recording's last 20 %, never trained on).
+    pub fn nominal(dataset: &A9Dataset) -> Result<Self> {
+        Ok(Self {
+            set: EvalSet::Nominal,
+            scenes: dataset.scenes(&SceneConfig::default())?.test,
+            scenarios: Vec::new(),
+        })
+    }
+
+    pub fn generated(set: EvalSet, scenarios: Vec<ConcreteScenario>) -> Result<Self> {
+        let scenes = scenarios
+            .iter()
+            .map(ConcreteScenario::to_scene)
+            .collect::<Result<Vec<_>>>()?;
+        Ok(Self {
+            set,
+            scenes,
+            scenarios,
+        })
+    }
+}
+
+/// The requested sets. Generated sets come from `scenario_dir` (written by `rtr scenarios
+/// generate`: its `eval/` and `ood/`), or are drawn now with the default seed and sizes
+/// (the same scenarios `rtr scenarios generate` writes by default).
+pub fn load_sets(
+    dataset: &A9Dataset,
+    scenario_dir: Option<&Path>,
+    sets: &[EvalSet],
+) -> Result<Vec<EvalScenes>> {
+    let wants_generated = sets.iter().any(|s| !s.has_logs());
+    let mut generated = None;
+    if wants_generated && scenario_dir.is_none() {
+        let families = load_families(&builtin_families())?;
+        let stats = TrafficStatistics::from_recording(&dataset.recording, &dataset.map, 1.0);
+        generated = Some(generate_sets(
+            &families,
+            &stats,
+            &GenerateConfig::default(),
+        )?);
+    }
+    sets.iter()
+        .map(|&set| {
+            let source = match set {
+                EvalSet::Nominal => return EvalScenes::nominal(dataset),
+                EvalSet::Longtail => ScenarioSet::Eval,
+                EvalSet::Ood => ScenarioSet::Ood,
+            };
+            let scenarios = match (scenario_dir, &generated) {
+                (Some(dir), _) => load_scenario_dir(&dir.join(source.name()))?,
+                (None, Some(g)) => g.set(source).to_vec(),
+                (None, None) => Vec::new(),
+            };
+            if scenarios.is_empty() {
+                return Err(Error::InvalidArgument(format!(
+                    "the {} set has no scenarios (looked in {})",
+                    set.name(),
+                    scenario_dir.map_or("the generated sets".into(), |d| d
+                        .join(source.name())
+                        .display()
+                        .to_string())
+                )));
+            }
+            EvalScenes::generated(set, scenarios)
+        })
+        .collect()
+}

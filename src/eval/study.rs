@@ -1,0 +1,215 @@
+//! Several policies on several sets, as `rtr eval` and the example run them: evaluate each,
+//! name its row, then write the table, `results.json` and the figures.
+
+use std::path::{Path, PathBuf};
+
+use indicatif::ProgressBar;
+
+use super::evaluate::{EvalConfig, EvalPolicy, IdmBaseline, evaluate, simulated_scenes};
+use super::metrics::Metric;
+use super::plots;
+use super::report::{MethodResult, markdown_table, results_json};
+use super::sets::{EvalScenes, EvalSet};
+use super::trained::TrainedPolicy;
+use crate::driver::IdmParams;
+use crate::error::{Error, Result};
+use crate::io::atomic_write;
+use crate::scene::Scene;
+use crate::sim::{ActionLimits, Dynamics};
+
+/// A row of the study: a trained policy, or the IDM reference driver.
+pub enum Entry {
+    Trained(Box<TrainedPolicy>),
+    Idm {
+        driver: IdmBaseline,
+        dynamics: Dynamics,
+    },
+}
+
+impl Entry {
+    /// The IDM reference with the default action limits in the paper's bicycle.
+    pub fn idm() -> Self {
+        let limits = ActionLimits::default();
+        let mut dynamics = Dynamics::bicycle(0.5);
+        dynamics.limits = Some(limits);
+        Entry::Idm {
+            driver: IdmBaseline {
+                params: IdmParams::default(),
+                limits,
+            },
+            dynamics,
+        }
+    }
+
+    /// Method name, source, policy and simulator.
+    fn parts(&self) -> (String, String, Box<dyn EvalPolicy + '_>, &Dynamics) {
+        match self {
+            Entry::Trained(t) => (
+                t.method.clone(),
+                t.path.display().to_string(),
+                Box::new(TrainedRef(&t.network)),
+                &t.dynamics,
+            ),
+            Entry::Idm { driver, dynamics } => (
+                "IDM".into(),
+                "driver::IdmDriver (not learned)".into(),
+                Box::new(IdmRef(driver)),
+                dynamics,
+            ),
+        }
+    }
+}
+
+struct IdmRef<'a>(&'a IdmBaseline);
+
+impl EvalPolicy for IdmRef<'_> {
+    fn policy<'a>(
+        &'a self,
+        scenes: &[&Scene],
+        batch: &crate::scene::SceneBatch,
+    ) -> Box<dyn crate::sim::Policy + 'a> {
+        self.0.policy(scenes, batch)
+    }
+}
+
+struct TrainedRef<'a>(&'a crate::model::PolicyNetwork);
+
+impl EvalPolicy for TrainedRef<'_> {
+    fn policy<'a>(
+        &'a self,
+        scenes: &[&Scene],
+        batch: &crate::scene::SceneBatch,
+    ) -> Box<dyn crate::sim::Policy + 'a> {
+        self.0.policy(scenes, batch)
+    }
+}
+
+/// Row names: the method, or `method (folder)` where two rows share a method.
+fn row_names(entries: &[(String, String)]) -> Vec<String> {
+    entries
+        .iter()
+        .map(|(method, path)| {
+            let shared = entries.iter().filter(|(m, _)| m == method).count() > 1;
+            if shared {
+                let folder = Path::new(path)
+                    .parent()
+                    .and_then(|p| p.file_name())
+                    .map_or(path.clone(), |f| f.to_string_lossy().into_owned());
+                format!("{method} ({folder})")
+            } else {
+                method.clone()
+            }
+        })
+        .collect()
+}
+
+/// Evaluates every entry on every set (in that order); `progress` counts entry x set.
+pub fn evaluate_entries(
+    entries: &[Entry],
+    sets: &[EvalScenes],
+    device: &burn::prelude::Device,
+    config: &EvalConfig,
+    progress: &ProgressBar,
+) -> Result<Vec<MethodResult>> {
+    progress.set_length((entries.len() * sets.len()) as u64);
+    let parts: Vec<_> = entries.iter().map(Entry::parts).collect();
+    let names = row_names(
+        &parts
+            .iter()
+            .map(|(m, p, _, _)| (m.clone(), p.clone()))
+            .collect::<Vec<_>>(),
+    );
+    parts
+        .iter()
+        .zip(names)
+        .map(|((_, checkpoint, policy, dynamics), name)| {
+            let results = sets
+                .iter()
+                .map(|set| {
+                    progress.set_message(format!("{name} on {}", set.set.name()));
+                    let r = evaluate(policy.as_ref(), dynamics, set, device, config);
+                    progress.inc(1);
+                    r
+                })
+                .collect::<Result<Vec<_>>>()?;
+            Ok(MethodResult {
+                method: name,
+                checkpoint: checkpoint.clone(),
+                sets: results,
+            })
+        })
+        .collect()
+}
+
+/// Writes `results.json`, `table.md` and the figures into `dir`: the Pareto plots (against
+/// nominal FDE and against the mean JSD) when both nominal and long-tail were evaluated,
+/// each method's feature histograms, training curves of the trained entries, and the first
+/// nominal scene rolled out by each trained method beside its log. Returns what it wrote.
+pub fn write_study(
+    dir: &Path,
+    entries: &[Entry],
+    results: &[MethodResult],
+    sets: &[EvalScenes],
+    device: &burn::prelude::Device,
+) -> Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    let mut written = Vec::new();
+    let json = serde_json::to_string_pretty(&results_json(results))
+        .map_err(|e| Error::InvalidArgument(format!("results do not serialise: {e}")))?;
+    atomic_write(&dir.join("results.json"), json.as_bytes())?;
+    written.push(dir.join("results.json"));
+    let set_names: Vec<EvalSet> = sets.iter().map(|s| s.set).collect();
+    atomic_write(
+        &dir.join("table.md"),
+        markdown_table(results, &set_names).as_bytes(),
+    )?;
+    written.push(dir.join("table.md"));
+    for realism in [Metric::FdeM, Metric::Jsd(super::features::Feature::Speed)] {
+        written.extend(plots::pareto(dir, results, realism)?);
+    }
+    for r in results {
+        written.extend(plots::histograms(dir, r)?);
+    }
+    let curves: Vec<(String, Vec<crate::train::CurveRow>)> = entries
+        .iter()
+        .zip(results)
+        .filter_map(|(e, r)| match e {
+            Entry::Trained(t) => {
+                let run = t.path.parent()?;
+                let rows = crate::train::curves::read(&run.join("curves.csv")).ok()?;
+                Some((r.method.clone(), rows))
+            }
+            Entry::Idm { .. } => None,
+        })
+        .collect();
+    written.extend(plots::training_curves(dir, &curves)?);
+    // The first scene of each set, driven by every entry, beside its log.
+    for set in sets {
+        if set.scenes.is_empty() {
+            continue;
+        }
+        let mut rollouts = Vec::new();
+        for (e, r) in entries.iter().zip(results) {
+            let (_, _, policy, dynamics) = e.parts();
+            let sim = simulated_scenes(policy.as_ref(), dynamics, set, &[0], device)?;
+            rollouts.extend(sim.into_iter().map(|s| (r.method.clone(), s)));
+        }
+        written.extend(plots::rollout_pictures(dir, &set.scenes[0], &rollouts)?);
+    }
+    Ok(written)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rows_sharing_a_method_are_told_apart_by_folder() {
+        let entries = [
+            ("RTR".to_string(), "runs/a/policy.bpk".to_string()),
+            ("RTR".to_string(), "runs/b/policy.bpk".to_string()),
+            ("IL".to_string(), "models/il/policy.bpk".to_string()),
+        ];
+        assert_eq!(row_names(&entries), ["RTR (a)", "RTR (b)", "IL"]);
+    }
+}

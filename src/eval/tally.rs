@@ -1,0 +1,232 @@
+//! From a finished rollout to per-scene tallies ([`SceneTally`]). Everything here is host
+//! code over plain arrays: the rollout tensors are read once, then each scene is measured
+//! against its log (the [`Scene`]'s states are the logged box-centre poses).
+
+use burn::prelude::*;
+use burn::tensor::Bool;
+
+use super::features::{Feature, VehiclePose, lane_deviation, lead_gap};
+use super::metrics::SceneTally;
+use super::reconstruction::{LoggedPath, displacement};
+use crate::error::{Error, Result};
+use crate::scene::{AgentRole, Scene};
+use crate::sim::Rollout;
+
+/// The rollout's per-step arrays on the host, row-major `[B][N][T + 1]`.
+struct HostRollout {
+    n: usize,
+    steps: usize,
+    /// `[.., 4]`: centre x, y, heading, speed.
+    poses: Vec<f32>,
+    present: Vec<bool>,
+    simulated: Vec<bool>,
+    /// `[B][N][T]`.
+    collision: Vec<bool>,
+    offroad: Vec<bool>,
+}
+
+fn floats<const D: usize>(t: Tensor<D>) -> Vec<f32> {
+    t.into_data()
+        .convert::<f32>()
+        .try_into_vec::<f32>()
+        .unwrap_or_default()
+}
+
+fn bools<const D: usize>(t: Tensor<D, Bool>) -> Vec<bool> {
+    t.into_data().try_into_vec::<bool>().unwrap_or_default()
+}
+
+impl HostRollout {
+    fn new(out: &Rollout) -> Self {
+        let [_, n, t1, _] = out.poses.dims();
+        Self {
+            n,
+            steps: t1 - 1,
+            poses: floats(out.poses.clone()),
+            present: bools(out.present.clone()),
+            simulated: bools(out.simulated.clone()),
+            collision: bools(out.collision.clone()),
+            offroad: bools(out.offroad.clone()),
+        }
+    }
+
+    fn at(&self, b: usize, i: usize, t: usize) -> usize {
+        (b * self.n + i) * (self.steps + 1) + t
+    }
+
+    fn pose(&self, b: usize, i: usize, t: usize, scene: &Scene) -> VehiclePose {
+        let k = self.at(b, i, t) * 4;
+        let p = &self.poses[k..k + 4];
+        let agent = &scene.agents[i];
+        VehiclePose {
+            x: p[0] as f64,
+            y: p[1] as f64,
+            heading: p[2] as f64,
+            speed: p[3] as f64,
+            length: agent.length,
+            width: agent.width,
+        }
+    }
+
+    fn any_flag(&self, flags: &[bool], b: usize, i: usize) -> bool {
+        let row = (b * self.n + i) * self.steps;
+        flags[row..row + self.steps].iter().any(|&f| f)
+    }
+}
+
+fn logged_pose(scene: &Scene, i: usize, step: usize) -> Option<VehiclePose> {
+    let agent = &scene.agents[i];
+    agent.valid.get(step).copied().unwrap_or(false).then(|| {
+        let s = agent.states[step];
+        VehiclePose {
+            x: s.x,
+            y: s.y,
+            heading: s.heading,
+            speed: s.speed,
+            length: agent.length,
+            width: agent.width,
+        }
+    })
+}
+
+/// The features of vehicle `i` at step `t`: `pose`, its pose one step before (for the
+/// acceleration), and everybody at `t` (for the leader).
+fn add_features(
+    hist: &mut [super::histogram::Histogram],
+    scene: &Scene,
+    i: usize,
+    before: Option<VehiclePose>,
+    all: &[VehiclePose],
+    present: &[bool],
+) {
+    let pose = &all[i];
+    for (h, f) in hist.iter_mut().zip(Feature::ALL) {
+        let value = match f {
+            Feature::Acceleration => before.map(|b| (pose.speed - b.speed) / scene.dt),
+            Feature::Speed => Some(pose.speed),
+            Feature::LaneDeviation => lane_deviation(&scene.map, pose),
+            Feature::LeadDistance => lead_gap(i, all, present),
+        };
+        if let Some(v) = value {
+            h.add(v);
+        }
+    }
+}
+
+/// Tallies each scene of a rollout over `scenes` (the batch's scenes, in order).
+///
+/// - Infractions: a controlled agent counts once if any step of the rollout flags it.
+/// - With `with_log` (real scenes, whose controlled agents have logged futures): FDE at step
+///   `fde_step` for agents simulated and logged then; ATE/CTE at every step where both are;
+///   features of the simulated and of the logged agent-steps over the rollout's steps.
+pub fn tally_rollout(
+    scenes: &[&Scene],
+    out: &Rollout,
+    fde_step: usize,
+    with_log: bool,
+) -> Result<Vec<SceneTally>> {
+    let host = HostRollout::new(out);
+    if host.poses.len() != scenes.len() * host.n * (host.steps + 1) * 4 {
+        return Err(Error::InvalidArgument(format!(
+            "rollout of shape {:?} does not match {} scenes",
+            out.poses.dims(),
+            scenes.len()
+        )));
+    }
+    Ok(scenes
+        .iter()
+        .enumerate()
+        .map(|(b, scene)| tally_scene(&host, b, scene, fde_step, with_log))
+        .collect())
+}
+
+fn tally_scene(
+    host: &HostRollout,
+    b: usize,
+    scene: &Scene,
+    fde_step: usize,
+    with_log: bool,
+) -> SceneTally {
+    let mut tally = SceneTally::default();
+    let agents = scene.agents.len().min(host.n);
+    let now = scene.current_step();
+    let controlled: Vec<usize> = (0..agents)
+        .filter(|&i| scene.agents[i].role == AgentRole::Controlled)
+        .collect();
+    for &i in &controlled {
+        tally.agents += 1.0;
+        tally.collided += f64::from(u8::from(host.any_flag(&host.collision, b, i)));
+        tally.offroad += f64::from(u8::from(host.any_flag(&host.offroad, b, i)));
+    }
+    if !with_log {
+        return tally;
+    }
+
+    // Logged paths over the simulated window (from the current step on).
+    let last = (now + host.steps).min(scene.steps() - 1);
+    let paths: Vec<Option<LoggedPath>> = (0..agents)
+        .map(|i| {
+            let points: Vec<[f64; 2]> = (now..=last)
+                .filter_map(|s| logged_pose(scene, i, s).map(|p| [p.x, p.y]))
+                .collect();
+            let heading = logged_pose(scene, i, now).map_or(0.0, |p| p.heading);
+            LoggedPath::new(&points, heading)
+        })
+        .collect();
+
+    for t in 1..=host.steps {
+        let step = now + t;
+        let sim_all: Vec<VehiclePose> = (0..agents).map(|i| host.pose(b, i, t, scene)).collect();
+        let sim_present: Vec<bool> = (0..agents)
+            .map(|i| host.present[host.at(b, i, t)])
+            .collect();
+        let log_all: Vec<Option<VehiclePose>> =
+            (0..agents).map(|i| logged_pose(scene, i, step)).collect();
+        let log_present: Vec<bool> = log_all.iter().map(Option::is_some).collect();
+        let log_poses: Vec<VehiclePose> = log_all
+            .iter()
+            .zip(&sim_all)
+            .map(|(l, s)| l.unwrap_or(*s))
+            .collect();
+        for &i in &controlled {
+            let simulated = host.simulated[host.at(b, i, t)];
+            let logged = log_all[i];
+            if simulated {
+                let before =
+                    host.simulated[host.at(b, i, t - 1)].then(|| host.pose(b, i, t - 1, scene));
+                add_features(
+                    &mut tally.simulated,
+                    scene,
+                    i,
+                    before,
+                    &sim_all,
+                    &sim_present,
+                );
+            }
+            if logged.is_some() {
+                let before = logged_pose(scene, i, step - 1);
+                add_features(
+                    &mut tally.logged,
+                    scene,
+                    i,
+                    before,
+                    &log_poses,
+                    &log_present,
+                );
+            }
+            let (Some(l), true, Some(path)) = (logged, simulated, &paths[i]) else {
+                continue;
+            };
+            let s = &sim_all[i];
+            let (ate, cte) = path.errors([s.x, s.y], [l.x, l.y]);
+            tally.ate_sum += ate;
+            tally.cte_sum += cte;
+            tally.tracked_steps += 1.0;
+            if t == fde_step {
+                tally.fde_sum += displacement([s.x, s.y], [l.x, l.y]);
+                tally.fde_agents += 1.0;
+            }
+        }
+    }
+    tally
+}

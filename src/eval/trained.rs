@@ -1,0 +1,95 @@
+//! A trained policy as `rtr eval` and the example load it: a run folder (or a `models/`
+//! folder) holding the run's `config.toml` and the finished `policy.bpk`, or a checkpoint
+//! folder `checkpoints/iter-NNNNNN/` of an unfinished run.
+
+use std::path::{Path, PathBuf};
+
+use crate::error::{Error, Result};
+use crate::model::PolicyNetwork;
+use crate::sim::Dynamics;
+use crate::train::{TrainConfig, load_policy};
+
+const POLICY: &str = "policy.bpk";
+const CONFIG: &str = "config.toml";
+
+pub struct TrainedPolicy {
+    /// The method's table name (from the run's config).
+    pub method: String,
+    /// The policy file loaded.
+    pub path: PathBuf,
+    pub config: TrainConfig,
+    pub network: PolicyNetwork,
+    /// The simulator it was trained in (its action limits and physics terms).
+    pub dynamics: Dynamics,
+}
+
+/// The policy file and the run config for `path` (a run folder, a checkpoint folder inside
+/// one, or a `policy.bpk` file).
+fn locate(path: &Path) -> Result<(PathBuf, PathBuf)> {
+    let (dir, policy) = if path.is_file() {
+        let dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
+        (dir, path.to_path_buf())
+    } else {
+        (path.to_path_buf(), path.join(POLICY))
+    };
+    if !policy.is_file() {
+        return Err(Error::InvalidArgument(format!(
+            "{}: no {POLICY} there (a finished run folder, models/<method>/, or a \
+             checkpoints/iter-* folder was expected)",
+            path.display()
+        )));
+    }
+    // A checkpoint folder sits two levels below its run's config.
+    let candidates = [dir.join(CONFIG), dir.join("../..").join(CONFIG)];
+    let config = candidates
+        .iter()
+        .find(|c| c.is_file())
+        .cloned()
+        .ok_or_else(|| {
+            Error::InvalidArgument(format!(
+                "{}: no {CONFIG} beside the policy or in its run folder; it names the model \
+                 size the policy was trained with",
+                path.display()
+            ))
+        })?;
+    Ok((policy, config))
+}
+
+impl TrainedPolicy {
+    /// Loads the policy at `path` onto `device` (a plain, non-autodiff device).
+    pub fn load(path: &Path, device: &burn::prelude::Device) -> Result<Self> {
+        let (policy_path, config_path) = locate(path)?;
+        let text = std::fs::read_to_string(&config_path).map_err(|e| Error::io(&config_path, e))?;
+        let mut config = TrainConfig::from_toml_str(&text, &config_path.display().to_string())?;
+        // Evaluation needs neither the frozen KL reference nor the training data.
+        config.reference = None;
+        let network = load_policy(&policy_path, &config.model, device)?;
+        let dynamics = config.dynamics(device)?;
+        Ok(Self {
+            method: config.method.name().to_string(),
+            path: policy_path,
+            config,
+            network,
+            dynamics,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_folder_without_a_policy_is_named_in_the_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let e = locate(dir.path()).unwrap_err().to_string();
+        assert!(e.contains("no policy.bpk"), "{e}");
+        std::fs::write(dir.path().join(POLICY), b"x").unwrap();
+        let e = locate(dir.path()).unwrap_err().to_string();
+        assert!(e.contains("no config.toml"), "{e}");
+        std::fs::write(dir.path().join(CONFIG), b"method = \"IL\"").unwrap();
+        let (p, c) = locate(dir.path()).unwrap();
+        assert_eq!(p, dir.path().join(POLICY));
+        assert_eq!(c, dir.path().join(CONFIG));
+    }
+}

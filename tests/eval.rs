@@ -1,0 +1,154 @@
+//! Evaluation on the real A9 data: the logged drivers replayed through the simulator score as
+//! the log does (no infractions, FDE and CTE near zero, near-zero JSDs), a policy that ignores
+//! the road scores worse on every realism metric, and the metrics do not depend on how scenes
+//! are batched.
+
+mod common;
+
+use burn::prelude::*;
+use rtr::eval::bootstrap::{estimate, resampled_totals, total};
+use rtr::eval::{
+    EvalConfig, EvalScenes, Feature, Metric, SceneTally, evaluate_tallies, summarise, tally_rollout,
+};
+use rtr::scene::{Scene, SceneBatch};
+use rtr::sim::{Dynamics, MapCaches, RolloutConfig, coast, replay_logs, rollout};
+
+#[allow(deprecated)]
+fn cpu() -> Device {
+    Device::ndarray()
+}
+
+fn metric(tallies: &[SceneTally], m: Metric) -> f64 {
+    m.value(&total(tallies).expect("scenes")).expect("defined")
+}
+
+#[test]
+fn replayed_logs_score_as_the_log() {
+    let split = common::a9_scenes();
+    let scenes: Vec<&Scene> = split.test.iter().take(40).collect();
+    let (_, out) = replay_logs(&scenes, &Dynamics::bicycle(0.5), &cpu()).expect("replay");
+    let tallies = tally_rollout(&scenes, &out, 10, true).expect("tally");
+    let t = total(&tallies).expect("scenes");
+    println!(
+        "replay: agents {} fde {:?} ate {:?} cte {:?} jsd {:?}",
+        t.agents,
+        Metric::FdeM.value(&t),
+        Metric::AteM.value(&t),
+        Metric::CteM.value(&t),
+        Feature::ALL.map(|f| Metric::Jsd(f).value(&t))
+    );
+    assert!(
+        t.agents > 200.0 && t.fde_agents > 50.0,
+        "{} agents, {} at 5 s",
+        t.agents,
+        t.fde_agents
+    );
+    assert_eq!(Metric::CollisionPct.value(&t), Some(0.0));
+    assert_eq!(Metric::OffroadPct.value(&t), Some(0.0));
+    assert!(Metric::FdeM.value(&t).unwrap() < 0.2);
+    assert!(Metric::CteM.value(&t).unwrap() < 0.1);
+    assert!(Metric::AteM.value(&t).unwrap() < 0.1);
+    // The inverse model reproduces positions; the logged speed channel (the tracker's) and
+    // the speed implied by positions differ a little, which the 0.25 m/s^2 acceleration bins
+    // see: its floor is higher.
+    for f in Feature::ALL {
+        let jsd = Metric::Jsd(f).value(&t).unwrap();
+        let floor = if f == Feature::Acceleration {
+            0.1
+        } else {
+            0.02
+        };
+        assert!(jsd < floor, "JSD {} = {jsd}", f.name());
+    }
+    // Every feature was measured on both sides.
+    for k in 0..Feature::ALL.len() {
+        let (sim, log) = (t.simulated[k].total(), t.logged[k].total());
+        assert!(
+            sim > 100.0 && log > 100.0,
+            "feature {k}: {sim} / {log} samples"
+        );
+    }
+}
+
+#[test]
+fn coasting_agents_score_worse_than_the_log() {
+    // Zero controls from the logged state: no braking, no steering along the curved A9.
+    let split = common::a9_scenes();
+    let scenes: Vec<&Scene> = split.test.iter().take(24).collect();
+    let (_, replay) = replay_logs(&scenes, &Dynamics::bicycle(0.5), &cpu()).expect("replay");
+    let batch = SceneBatch::from_scenes(&scenes, &cpu()).expect("batch");
+    let config = RolloutConfig {
+        steps: None,
+        early_termination: false,
+    };
+    let mut policy = coast;
+    let coasting = rollout(
+        &scenes,
+        &batch,
+        &Dynamics::bicycle(0.5),
+        &mut policy,
+        &mut MapCaches::default(),
+        &config,
+    )
+    .expect("rollout");
+    let logged = tally_rollout(&scenes, &replay, 10, true).expect("tally");
+    let coasted = tally_rollout(&scenes, &coasting, 10, true).expect("tally");
+    for m in [
+        Metric::FdeM,
+        Metric::CteM,
+        Metric::Jsd(Feature::Acceleration),
+    ] {
+        let (a, b) = (metric(&logged, m), metric(&coasted, m));
+        assert!(b > a + 0.01, "{}: coasting {b} vs log {a}", m.key());
+    }
+    // Coasting has exactly zero acceleration: its histogram is one bin.
+    let t = total(&coasted).unwrap();
+    let acc = &t.simulated[0];
+    assert_eq!(acc.counts.iter().filter(|&&c| c > 0.0).count(), 1);
+}
+
+#[test]
+fn metrics_do_not_depend_on_batching_and_carry_intervals() {
+    let split = common::a9_scenes();
+    let set = EvalScenes {
+        set: rtr::eval::EvalSet::Nominal,
+        scenes: split.test.iter().take(12).cloned().collect(),
+        scenarios: Vec::new(),
+    };
+    let driver = rtr::eval::IdmBaseline {
+        params: Default::default(),
+        limits: Default::default(),
+    };
+    let mut dynamics = Dynamics::bicycle(0.5);
+    dynamics.limits = Some(Default::default());
+    let run = |batch| {
+        let config = EvalConfig {
+            batch,
+            resamples: 200,
+            ..EvalConfig::default()
+        };
+        evaluate_tallies(&driver, &dynamics, &set, &cpu(), &config).expect("evaluate")
+    };
+    let (one, four) = (run(1), run(4));
+    assert_eq!(one.len(), 12);
+    for (a, b) in one.iter().zip(&four) {
+        assert!((a.fde_sum - b.fde_sum).abs() < 1e-3 * (1.0 + a.fde_sum));
+        assert_eq!(a.agents, b.agents);
+        assert_eq!(a.simulated[1].total(), b.simulated[1].total());
+    }
+    let config = EvalConfig::default();
+    let row = summarise(set.set, &one, &config);
+    let fde = row.get(Metric::FdeM).expect("fde");
+    assert!(
+        fde.value > 0.0 && fde.ci > 0.0 && fde.ci < fde.value,
+        "{fde:?}"
+    );
+    // The summary's interval is the bootstrap of the same tallies.
+    let full = total(&one).unwrap();
+    let again = estimate(
+        &full,
+        &resampled_totals(&one, config.resamples, config.seed),
+        |t| Metric::FdeM.value(t),
+    );
+    assert_eq!(again, Some(fde));
+}
