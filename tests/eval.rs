@@ -152,3 +152,35 @@ fn metrics_do_not_depend_on_batching_and_carry_intervals() {
     );
     assert_eq!(again, Some(fde));
 }
+
+#[test]
+fn sampled_realism_repeats_with_its_seed_and_is_a_likelihood() {
+    let split = common::a9_scenes();
+    let set = EvalScenes {
+        set: rtr::eval::EvalSet::Nominal,
+        scenes: split.test.iter().take(6).cloned().collect(),
+        scenarios: Vec::new(),
+    };
+    let device = cpu();
+    device.seed(5);
+    let network = rtr::model::PolicyNetwork::new(&rtr::model::ModelConfig::small(), &device);
+    let dynamics = Dynamics::bicycle(0.5);
+    let config = EvalConfig {
+        batch: 3,
+        realism_samples: 3,
+        resamples: 100,
+        ..EvalConfig::default()
+    };
+    let run = || {
+        rtr::eval::evaluate::realism_tallies(&network, &dynamics, &set, &device, &config)
+            .expect("realism")
+    };
+    let (a, b) = (run(), run());
+    assert_eq!(a, b, "same seed, same samples");
+    let scores = rtr::eval::evaluate::summarise_realism(&a, &config);
+    let composite = scores[3].expect("composite").value;
+    assert!(composite > 0.0 && composite <= 1.0, "{composite}");
+    for s in scores.iter().flatten() {
+        assert!(s.value > 0.0 && s.value <= 1.0 && s.ci >= 0.0, "{s:?}");
+    }
+}

@@ -58,6 +58,9 @@ enum Command {
     /// Evaluate trained policies on the nominal (real A9 test), long-tail and OOD sets: prints
     /// the paper's table (Markdown, one row per checkpoint) and writes JSON and figures.
     Eval(EvalArgs),
+    /// The lambda x alpha study: train RTR at every point from one base run file, then
+    /// evaluate each (paper table "Balancing realism and infraction avoidance").
+    Sweep(SweepArgs),
     /// Sim-to-real: locate where the simulator and vehicle recordings differ, name the physics
     /// the bicycle model left out, fit it and show held-out error before and after.
     Sim2real(Sim2RealArgs),
@@ -95,6 +98,31 @@ struct EvalArgs {
     batch: usize,
     #[arg(long, default_value_t = Backend::NdArray)]
     backend: Backend,
+    #[command(flatten)]
+    data: DataArgs,
+}
+
+#[derive(Args)]
+struct SweepArgs {
+    /// The base run file (method RTR); lambda and alpha are set per point.
+    #[arg(long)]
+    config: PathBuf,
+    /// Points LAMBDA:ALPHA, comma-separated; default: the paper's six.
+    #[arg(long, default_value = "0:0,1:0.5,5:0.5,10:0.5,5:0.3,5:0.7")]
+    points: String,
+    /// Folder of the point runs (OUT/lambda<L>_alpha<A>), results.json and table.md.
+    #[arg(long, default_value = "runs/sweep")]
+    out: PathBuf,
+    /// Scenarios from `rtr scenarios generate`, for training (train/) and evaluation (eval/,
+    /// ood/); default: drawn now.
+    #[arg(long)]
+    scenarios: Option<PathBuf>,
+    /// Scene sets to evaluate on, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "nominal,longtail")]
+    set: Vec<String>,
+    /// Bootstrap resamples over scenes.
+    #[arg(long, default_value_t = 1000)]
+    resamples: usize,
     #[command(flatten)]
     data: DataArgs,
 }
@@ -435,6 +463,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::Scenarios { command } => scenarios(command),
         Command::Train(args) => train(args),
         Command::Eval(args) => eval(args),
+        Command::Sweep(args) => sweep(args),
         Command::Sim2real(args) => sim2real(args),
         Command::Recordings {
             command:
@@ -490,6 +519,51 @@ fn eval(args: EvalArgs) -> Result<()> {
         let written = write_study(out, &entries, &results, &scenes, &device)?;
         println!("wrote {} files to {}", written.len(), out.display());
     }
+    Ok(())
+}
+
+fn sweep(args: SweepArgs) -> Result<()> {
+    use rtr::eval::sweep::{evaluate_points, parse_points, train_points, write_sweep};
+    use rtr::eval::{EvalConfig, EvalSet, load_sets};
+    let points = parse_points(&args.points)?;
+    let sets = args
+        .set
+        .iter()
+        .map(|s| EvalSet::parse(s.trim()))
+        .collect::<Result<Vec<_>>>()?;
+    let mut base = rtr::train::TrainConfig::from_toml_file(&args.config)?;
+    if let Some(dir) = &args.scenarios {
+        base.data.longtail_dir = Some(dir.clone());
+    }
+    let dataset = args.data.load()?;
+    let bar = |prefix: &str| {
+        let b = indicatif::ProgressBar::new(0);
+        if let Ok(style) = indicatif::ProgressStyle::with_template(
+            "{prefix} [{elapsed_precise}] {bar:30} {pos}/{len} iterations, eta {eta} {msg}",
+        ) {
+            b.set_style(style);
+        }
+        b.set_prefix(prefix.to_string());
+        b
+    };
+    let dirs = train_points(&base, &points, &dataset, &args.out, &bar)?;
+    let device = rtr::backend::Backend::NdArray.device(false)?;
+    let scenes = load_sets(&dataset, args.scenarios.as_deref(), &sets)?;
+    let config = EvalConfig {
+        resamples: args.resamples,
+        realism_samples: 0,
+        ..EvalConfig::default()
+    };
+    let progress = bar("eval");
+    let results = evaluate_points(&points, &dirs, &scenes, &device, &config, &progress)?;
+    progress.finish_and_clear();
+    write_sweep(&args.out, &results, &scenes)?;
+    print!("{}", rtr::eval::markdown_table(&results, &sets));
+    println!(
+        "wrote {} and {}",
+        args.out.join("results.json").display(),
+        args.out.join("table.md").display()
+    );
     Ok(())
 }
 

@@ -8,14 +8,20 @@
 
 use std::collections::BTreeMap;
 
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use super::bootstrap::Additive;
 use super::bootstrap::{Estimate, estimate, resampled_totals, total};
 use super::metrics::{Metric, SceneTally};
 use super::plots::simulated_scene;
+use super::realism::{RealismTally, agent_tally};
 use super::sets::{EvalScenes, EvalSet};
 use super::tally::tally_rollout;
+use super::tally::{logged_features, simulated_features};
 use crate::driver::{IdmDriver, IdmParams};
 use crate::error::Result;
 use crate::model::{ActionMode, NetworkPolicy, PolicyNetwork};
@@ -33,6 +39,9 @@ pub struct EvalConfig {
     /// Bootstrap resamples over scenes.
     pub resamples: usize,
     pub seed: u64,
+    /// Sampled rollouts per scene for the WOSAC-style realism score (sets with logs only);
+    /// 0 skips it.
+    pub realism_samples: usize,
 }
 
 impl Default for EvalConfig {
@@ -42,18 +51,60 @@ impl Default for EvalConfig {
             fde_horizon_s: 5.0,
             resamples: 1000,
             seed: 2023,
+            realism_samples: 8,
         }
     }
 }
 
 /// Something that drives the controlled agents of a batch: a trained network or a baseline.
 pub trait EvalPolicy: Sync {
-    fn policy<'a>(&'a self, scenes: &[&Scene], batch: &SceneBatch) -> Box<dyn Policy + 'a>;
+    /// The deterministic policy (`noise = None`: the mean action), or one that samples its
+    /// actions with host noise seeded by `noise` (deterministic policies ignore it).
+    fn policy<'a>(
+        &'a self,
+        scenes: &[&Scene],
+        batch: &SceneBatch,
+        noise: Option<u64>,
+    ) -> Box<dyn Policy + 'a>;
 }
 
 impl EvalPolicy for PolicyNetwork {
-    fn policy<'a>(&'a self, _: &[&Scene], batch: &SceneBatch) -> Box<dyn Policy + 'a> {
-        Box::new(NetworkPolicy::new(self, batch, ActionMode::Mean))
+    fn policy<'a>(
+        &'a self,
+        _: &[&Scene],
+        batch: &SceneBatch,
+        noise: Option<u64>,
+    ) -> Box<dyn Policy + 'a> {
+        let mean = NetworkPolicy::new(self, batch, ActionMode::Mean);
+        match noise {
+            None => Box::new(mean),
+            Some(seed) => Box::new(SampledPolicy {
+                network: mean,
+                rng: ChaCha8Rng::seed_from_u64(seed),
+            }),
+        }
+    }
+}
+
+/// A network policy sampling mean + sigma * eps with eps from a seeded host generator, so
+/// sampled evaluations repeat exactly however batches run in parallel.
+struct SampledPolicy<'n> {
+    network: NetworkPolicy<'n>,
+    rng: ChaCha8Rng,
+}
+
+impl Policy for SampledPolicy<'_> {
+    fn act(&mut self, obs: &crate::sim::Observation) -> crate::sim::Controls {
+        let d = self.network.distribution(obs);
+        let dims = d.mean.dims();
+        let eps: Vec<f32> = (0..dims.iter().product::<usize>())
+            .map(|_| StandardNormal.sample(&mut self.rng))
+            .collect();
+        let eps = burn::prelude::Tensor::<3>::from_data(
+            burn::tensor::TensorData::new(eps, dims),
+            &d.mean.device(),
+        );
+        crate::sim::Controls::from_stacked(d.mean + d.log_std.exp() * eps)
     }
 }
 
@@ -64,7 +115,12 @@ pub struct IdmBaseline {
 }
 
 impl EvalPolicy for IdmBaseline {
-    fn policy<'a>(&'a self, scenes: &[&Scene], _: &SceneBatch) -> Box<dyn Policy + 'a> {
+    fn policy<'a>(
+        &'a self,
+        scenes: &[&Scene],
+        _: &SceneBatch,
+        _: Option<u64>,
+    ) -> Box<dyn Policy + 'a> {
         Box::new(IdmDriver::new(scenes, self.params, self.limits))
     }
 }
@@ -107,7 +163,7 @@ pub fn evaluate_tallies(
     let per_group: Vec<Result<Vec<(usize, SceneTally)>>> = groups
         .par_iter()
         .map_init(MapCaches::default, |caches, group| {
-            let (batch, out) = rollout_group(policy, dynamics, set, group, device, caches)?;
+            let (batch, out) = rollout_group(policy, dynamics, set, group, device, caches, None)?;
             let scenes: Vec<&Scene> = group.iter().map(|&k| &set.scenes[k]).collect();
             let fde_step = (config.fde_horizon_s / batch.dt).round() as usize;
             let tallies = tally_rollout(&scenes, &out, fde_step, set.set.has_logs())?;
@@ -123,6 +179,75 @@ pub fn evaluate_tallies(
     Ok(tallies.into_iter().flatten().collect())
 }
 
+/// Per-scene WOSAC-style realism tallies ([`super::realism`]) of `policy` on a set with logs:
+/// `config.realism_samples` sampled rollouts per batch, each seeded from the config's seed,
+/// the batch and the sample index.
+pub fn realism_tallies(
+    policy: &dyn EvalPolicy,
+    dynamics: &Dynamics,
+    set: &EvalScenes,
+    device: &burn::prelude::Device,
+    config: &EvalConfig,
+) -> Result<Vec<RealismTally>> {
+    let windows: Vec<(usize, usize)> = set
+        .scenes
+        .iter()
+        .map(|s| (s.history_steps, s.future_steps))
+        .collect();
+    let groups = batches(&windows, config.batch);
+    let per_group: Vec<Result<Vec<(usize, RealismTally)>>> = groups
+        .par_iter()
+        .enumerate()
+        .map_init(MapCaches::default, |caches, (g, group)| {
+            let scenes: Vec<&Scene> = group.iter().map(|&k| &set.scenes[k]).collect();
+            let mut sampled = Vec::with_capacity(config.realism_samples);
+            for k in 0..config.realism_samples {
+                let seed = crate::train::trainer::stream_seed(config.seed, g, k as u64);
+                let (_, out) =
+                    rollout_group(policy, dynamics, set, group, device, caches, Some(seed))?;
+                sampled.push(simulated_features(&scenes, &out));
+            }
+            Ok(group
+                .iter()
+                .enumerate()
+                .map(|(b, &index)| {
+                    let scene = scenes[b];
+                    let logged = logged_features(scene, scene.future_steps);
+                    let mut tally = RealismTally::default();
+                    for (i, log_rows) in logged.iter().enumerate() {
+                        if log_rows.is_empty() {
+                            continue;
+                        }
+                        let mut samples: [Vec<f64>; 4] = Default::default();
+                        let mut values: [Vec<f64>; 4] = Default::default();
+                        for run in &sampled {
+                            for f in run[b][i].iter().flatten() {
+                                for (k, v) in f.iter().enumerate() {
+                                    samples[k].extend(v);
+                                }
+                            }
+                        }
+                        for f in log_rows.iter().flatten() {
+                            for (k, v) in f.iter().enumerate() {
+                                values[k].extend(v);
+                            }
+                        }
+                        tally.add_scaled(&agent_tally(&samples, &values), 1.0);
+                    }
+                    (index, tally)
+                })
+                .collect())
+        })
+        .collect();
+    let mut tallies: Vec<RealismTally> = vec![RealismTally::default(); set.scenes.len()];
+    for group in per_group {
+        for (k, t) in group? {
+            tallies[k] = t;
+        }
+    }
+    Ok(tallies)
+}
+
 /// One set's row of the table: each metric with its bootstrap half-width (`None` where the
 /// set has no logs or the metric no samples).
 #[derive(Debug, Clone, PartialEq)]
@@ -133,6 +258,9 @@ pub struct SetResult {
     pub metrics: BTreeMap<Metric, Option<Estimate>>,
     /// The summed tally (histograms for plots).
     pub total: SceneTally,
+    /// The WOSAC-style realism score: kinematic, interactive, map and composite, where
+    /// computed.
+    pub realism: Option<[Option<Estimate>; 4]>,
 }
 
 impl SetResult {
@@ -161,7 +289,15 @@ pub fn summarise(set: EvalSet, tallies: &[SceneTally], config: &EvalConfig) -> S
         agents: full.agents as usize,
         metrics,
         total: full,
+        realism: None,
     }
+}
+
+/// The realism score's components and composite from per-scene realism tallies.
+pub fn summarise_realism(tallies: &[RealismTally], config: &EvalConfig) -> [Option<Estimate>; 4] {
+    let full = total(tallies).unwrap_or_default();
+    let resampled = resampled_totals(tallies, config.resamples, config.seed);
+    std::array::from_fn(|k| estimate(&full, &resampled, |t| t.score(k)))
 }
 
 /// Evaluates and summarises in one call.
@@ -173,7 +309,12 @@ pub fn evaluate(
     config: &EvalConfig,
 ) -> Result<SetResult> {
     let tallies = evaluate_tallies(policy, dynamics, set, device, config)?;
-    Ok(summarise(set.set, &tallies, config))
+    let mut result = summarise(set.set, &tallies, config);
+    if set.set.has_logs() && config.realism_samples > 0 {
+        let realism = realism_tallies(policy, dynamics, set, device, config)?;
+        result.realism = Some(summarise_realism(&realism, config));
+    }
+    Ok(result)
 }
 
 /// Rolls out the scenes `indices` of `set` (same window shape) and returns the batch's scenes
@@ -185,6 +326,7 @@ fn rollout_group(
     indices: &[usize],
     device: &burn::prelude::Device,
     caches: &mut MapCaches,
+    noise: Option<u64>,
 ) -> Result<(SceneBatch, crate::sim::Rollout)> {
     let scenes: Vec<&Scene> = indices.iter().map(|&k| &set.scenes[k]).collect();
     let batch = SceneBatch::from_scenes(&scenes, device)?;
@@ -192,7 +334,7 @@ fn rollout_group(
         steps: None,
         early_termination: false,
     };
-    let mut learned = policy.policy(&scenes, &batch);
+    let mut learned = policy.policy(&scenes, &batch, noise);
     let out = if set.scenarios.is_empty() {
         rollout(&scenes, &batch, dynamics, &mut *learned, caches, &config)?
     } else {
@@ -224,6 +366,7 @@ pub fn simulated_scenes(
         indices,
         device,
         &mut MapCaches::default(),
+        None,
     )?;
     let scenes: Vec<&Scene> = indices.iter().map(|&k| &set.scenes[k]).collect();
     let [b, n, t1, _] = out.poses.dims();

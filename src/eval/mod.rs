@@ -12,10 +12,12 @@ pub mod features;
 pub mod histogram;
 pub mod metrics;
 pub mod plots;
+pub mod realism;
 pub mod reconstruction;
 pub mod report;
 pub mod sets;
 pub mod study;
+pub mod sweep;
 pub mod tally;
 pub mod trained;
 

@@ -5,6 +5,7 @@
 
 use serde_json::{Map, Value, json};
 
+use super::bootstrap::Estimate;
 use super::evaluate::SetResult;
 use super::metrics::Metric;
 use super::sets::EvalSet;
@@ -43,6 +44,18 @@ pub fn set_json(r: &SetResult) -> Value {
         o.insert(m.key(), json!(e.map(|e| e.value)));
         o.insert(format!("{}_ci", m.key()), json!(e.map(|e| e.ci)));
     }
+    if let Some(realism) = &r.realism {
+        let names = [
+            "realism_kinematic",
+            "realism_interactive",
+            "realism_map",
+            "realism",
+        ];
+        for (name, e) in names.iter().zip(realism) {
+            o.insert(name.to_string(), json!(e.map(|e| e.value)));
+            o.insert(format!("{name}_ci"), json!(e.map(|e| e.ci)));
+        }
+    }
     Value::Object(o)
 }
 
@@ -71,27 +84,57 @@ fn decimals(m: Metric) -> usize {
     }
 }
 
-fn cell(r: Option<&SetResult>, m: Metric) -> String {
-    match r.and_then(|r| r.get(m)) {
-        Some(e) => format!("{:.d$} ± {:.d$}", e.value, e.ci, d = decimals(m)),
+/// A table column: a paper metric, or the realism score (after a set's metrics, where any row
+/// has it).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Column {
+    Metric(Metric),
+    Realism,
+}
+
+fn set_columns(set: EvalSet, methods: &[MethodResult]) -> Vec<Column> {
+    let mut out: Vec<Column> = columns(set).into_iter().map(Column::Metric).collect();
+    if methods
+        .iter()
+        .any(|m| m.set(set).is_some_and(|r| r.realism.is_some()))
+    {
+        out.push(Column::Realism);
+    }
+    out
+}
+
+fn estimate_cell(e: Option<Estimate>, decimals: usize) -> String {
+    match e {
+        Some(e) => format!("{:.d$} ± {:.d$}", e.value, e.ci, d = decimals),
         None => "–".into(),
     }
 }
 
-fn header_of(set: EvalSet, m: Metric, sets: &[EvalSet]) -> String {
-    if sets.len() == 1 {
-        m.header()
-    } else {
-        format!("{} {}", set.name(), m.header())
+fn cell(r: Option<&SetResult>, c: Column) -> String {
+    match c {
+        Column::Metric(m) => estimate_cell(r.and_then(|r| r.get(m)), decimals(m)),
+        Column::Realism => estimate_cell(r.and_then(|r| r.realism.and_then(|x| x[3])), 3),
     }
 }
 
-/// The Markdown header and separator for `sets`.
-pub fn table_header(sets: &[EvalSet]) -> String {
+fn header_of(set: EvalSet, c: Column, sets: &[EvalSet]) -> String {
+    let name = match c {
+        Column::Metric(m) => m.header(),
+        Column::Realism => "Realism".into(),
+    };
+    if sets.len() == 1 {
+        name
+    } else {
+        format!("{} {name}", set.name())
+    }
+}
+
+/// The Markdown header and separator for `sets` (a realism column where `methods` have it).
+pub fn table_header(methods: &[MethodResult], sets: &[EvalSet]) -> String {
     let headers: Vec<String> = sets
         .iter()
-        .flat_map(|&s| columns(s).into_iter().map(move |m| (s, m)))
-        .map(|(s, m)| header_of(s, m, sets))
+        .flat_map(|&s| set_columns(s, methods).into_iter().map(move |c| (s, c)))
+        .map(|(s, c)| header_of(s, c, sets))
         .collect();
     format!(
         "| Method | {} |\n|---|{}\n",
@@ -100,11 +143,11 @@ pub fn table_header(sets: &[EvalSet]) -> String {
     )
 }
 
-/// One Markdown row: the method's cells for `sets`.
-pub fn table_row(m: &MethodResult, sets: &[EvalSet]) -> String {
+/// One Markdown row of `m` among `methods` (which fix the columns).
+pub fn table_row(m: &MethodResult, methods: &[MethodResult], sets: &[EvalSet]) -> String {
     let cells: Vec<String> = sets
         .iter()
-        .flat_map(|&s| columns(s).into_iter().map(move |c| (s, c)))
+        .flat_map(|&s| set_columns(s, methods).into_iter().map(move |c| (s, c)))
         .map(|(s, c)| cell(m.set(s), c))
         .collect();
     format!("| {} | {} |\n", m.method, cells.join(" | "))
@@ -112,9 +155,9 @@ pub fn table_row(m: &MethodResult, sets: &[EvalSet]) -> String {
 
 /// The whole table.
 pub fn markdown_table(methods: &[MethodResult], sets: &[EvalSet]) -> String {
-    let mut out = table_header(sets);
+    let mut out = table_header(methods, sets);
     for m in methods {
-        out.push_str(&table_row(m, sets));
+        out.push_str(&table_row(m, methods, sets));
     }
     out
 }
@@ -122,7 +165,6 @@ pub fn markdown_table(methods: &[MethodResult], sets: &[EvalSet]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::eval::bootstrap::Estimate;
     use crate::eval::metrics::SceneTally;
 
     fn result(set: EvalSet, collision: f64) -> SetResult {
@@ -145,6 +187,7 @@ mod tests {
                 })
                 .collect(),
             total: SceneTally::default(),
+            realism: None,
         }
     }
 

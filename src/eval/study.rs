@@ -67,8 +67,9 @@ impl EvalPolicy for IdmRef<'_> {
         &'a self,
         scenes: &[&Scene],
         batch: &crate::scene::SceneBatch,
+        noise: Option<u64>,
     ) -> Box<dyn crate::sim::Policy + 'a> {
-        self.0.policy(scenes, batch)
+        self.0.policy(scenes, batch, noise)
     }
 }
 
@@ -79,8 +80,9 @@ impl EvalPolicy for TrainedRef<'_> {
         &'a self,
         scenes: &[&Scene],
         batch: &crate::scene::SceneBatch,
+        noise: Option<u64>,
     ) -> Box<dyn crate::sim::Policy + 'a> {
-        self.0.policy(scenes, batch)
+        self.0.policy(scenes, batch, noise)
     }
 }
 

@@ -6,6 +6,7 @@ use burn::prelude::*;
 use burn::tensor::Bool;
 
 use super::features::{Feature, VehiclePose, lane_deviation, lead_gap};
+use super::histogram::Histogram;
 use super::metrics::SceneTally;
 use super::reconstruction::{LoggedPath, displacement};
 use crate::error::{Error, Result};
@@ -89,25 +90,28 @@ fn logged_pose(scene: &Scene, i: usize, step: usize) -> Option<VehiclePose> {
     })
 }
 
-/// The features of vehicle `i` at step `t`: `pose`, its pose one step before (for the
-/// acceleration), and everybody at `t` (for the leader).
-fn add_features(
-    hist: &mut [super::histogram::Histogram],
+/// The features ([`Feature::ALL`] order) of vehicle `i`: `all[i]` its pose now, `before` its
+/// pose one step earlier (for the acceleration), `all`/`present` everybody now (for the
+/// leader).
+pub fn features_of(
     scene: &Scene,
     i: usize,
     before: Option<VehiclePose>,
     all: &[VehiclePose],
     present: &[bool],
-) {
+) -> StepFeatures {
     let pose = &all[i];
-    for (h, f) in hist.iter_mut().zip(Feature::ALL) {
-        let value = match f {
-            Feature::Acceleration => before.map(|b| (pose.speed - b.speed) / scene.dt),
-            Feature::Speed => Some(pose.speed),
-            Feature::LaneDeviation => lane_deviation(&scene.map, pose),
-            Feature::LeadDistance => lead_gap(i, all, present),
-        };
-        if let Some(v) = value {
+    Feature::ALL.map(|f| match f {
+        Feature::Acceleration => before.map(|b| (pose.speed - b.speed) / scene.dt),
+        Feature::Speed => Some(pose.speed),
+        Feature::LaneDeviation => lane_deviation(&scene.map, pose),
+        Feature::LeadDistance => lead_gap(i, all, present),
+    })
+}
+
+fn add_features(hist: &mut [Histogram], features: StepFeatures) {
+    for (h, v) in hist.iter_mut().zip(features) {
+        if let Some(v) = v {
             h.add(v);
         }
     }
@@ -196,22 +200,14 @@ fn tally_scene(
                     host.simulated[host.at(b, i, t - 1)].then(|| host.pose(b, i, t - 1, scene));
                 add_features(
                     &mut tally.simulated,
-                    scene,
-                    i,
-                    before,
-                    &sim_all,
-                    &sim_present,
+                    features_of(scene, i, before, &sim_all, &sim_present),
                 );
             }
             if logged.is_some() {
                 let before = logged_pose(scene, i, step - 1);
                 add_features(
                     &mut tally.logged,
-                    scene,
-                    i,
-                    before,
-                    &log_poses,
-                    &log_present,
+                    features_of(scene, i, before, &log_poses, &log_present),
                 );
             }
             let (Some(l), true, Some(path)) = (logged, simulated, &paths[i]) else {
@@ -229,4 +225,79 @@ fn tally_scene(
         }
     }
     tally
+}
+
+/// One agent-step's features in [`Feature::ALL`] order; `None` where undefined (no leader).
+pub type StepFeatures = [Option<f64>; 4];
+/// Per agent, per step 1..=T: the step's features, or `None` where the agent was not there.
+pub type AgentFeatureRows = Vec<Vec<Option<StepFeatures>>>;
+
+/// Per scene of a rollout, per agent (controlled ones; empty for others), per simulated step
+/// 1..=T: the simulated features ([`features_of`]); `None` where the agent was not simulated.
+pub fn simulated_features(scenes: &[&Scene], out: &Rollout) -> Vec<AgentFeatureRows> {
+    let host = HostRollout::new(out);
+    scenes
+        .iter()
+        .enumerate()
+        .map(|(b, scene)| {
+            let agents = scene.agents.len().min(host.n);
+            let mut per_agent = vec![Vec::new(); agents];
+            for t in 1..=host.steps {
+                let all: Vec<VehiclePose> =
+                    (0..agents).map(|i| host.pose(b, i, t, scene)).collect();
+                let present: Vec<bool> = (0..agents)
+                    .map(|i| host.present[host.at(b, i, t)])
+                    .collect();
+                for (i, row) in per_agent.iter_mut().enumerate() {
+                    if scene.agents[i].role != AgentRole::Controlled {
+                        continue;
+                    }
+                    let f = host.simulated[host.at(b, i, t)].then(|| {
+                        let before = host.simulated[host.at(b, i, t - 1)]
+                            .then(|| host.pose(b, i, t - 1, scene));
+                        features_of(scene, i, before, &all, &present)
+                    });
+                    row.push(f);
+                }
+            }
+            per_agent
+        })
+        .collect()
+}
+
+/// The logged counterpart of [`simulated_features`] for one scene over `steps` steps.
+pub fn logged_features(scene: &Scene, steps: usize) -> AgentFeatureRows {
+    let now = scene.current_step();
+    let agents = scene.agents.len();
+    let mut per_agent = vec![Vec::new(); agents];
+    for t in 1..=steps {
+        let step = now + t;
+        let log: Vec<Option<VehiclePose>> =
+            (0..agents).map(|i| logged_pose(scene, i, step)).collect();
+        let present: Vec<bool> = log.iter().map(Option::is_some).collect();
+        let poses: Vec<VehiclePose> = log
+            .iter()
+            .map(|p| {
+                p.unwrap_or(VehiclePose {
+                    x: f64::NAN,
+                    y: f64::NAN,
+                    heading: 0.0,
+                    speed: 0.0,
+                    length: 0.0,
+                    width: 0.0,
+                })
+            })
+            .collect();
+        for (i, row) in per_agent.iter_mut().enumerate() {
+            if scene.agents[i].role != AgentRole::Controlled {
+                continue;
+            }
+            row.push(
+                log[i].map(|_| {
+                    features_of(scene, i, logged_pose(scene, i, step - 1), &poses, &present)
+                }),
+            );
+        }
+    }
+    per_agent
 }

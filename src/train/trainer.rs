@@ -52,7 +52,7 @@ pub struct TrainSummary {
 }
 
 /// A seed for stream `stream` of iteration `iteration` (SplitMix64 of the three).
-fn stream_seed(seed: u64, iteration: usize, stream: u64) -> u64 {
+pub fn stream_seed(seed: u64, iteration: usize, stream: u64) -> u64 {
     let mut z = seed
         ^ (iteration as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
         ^ stream.wrapping_mul(0xD1B5_4A32_D192_ED03);

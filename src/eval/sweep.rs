@@ -1,0 +1,142 @@
+//! The lambda x alpha study (paper table "Balancing realism and infraction avoidance") as one
+//! command: RTR is trained at every (lambda, alpha) point from one base run file, each point
+//! in its own run folder (finished points are kept, interrupted ones resumed), then every
+//! point is evaluated and tabulated.
+
+use std::path::{Path, PathBuf};
+
+use indicatif::ProgressBar;
+
+use super::evaluate::EvalConfig;
+use super::report::{MethodResult, markdown_table, results_json};
+use super::sets::EvalScenes;
+use super::study::{Entry, evaluate_entries};
+use super::trained::TrainedPolicy;
+use crate::data::A9Dataset;
+use crate::error::{Error, Result};
+use crate::io::atomic_write;
+use crate::train::{Method, TrainConfig};
+
+/// The paper's table: (lambda, alpha).
+pub const PAPER_POINTS: [(f64, f64); 6] = [
+    (0.0, 0.0),
+    (1.0, 0.5),
+    (5.0, 0.5),
+    (10.0, 0.5),
+    (5.0, 0.3),
+    (5.0, 0.7),
+];
+
+/// Parses `L:A,L:A,...`.
+pub fn parse_points(text: &str) -> Result<Vec<(f64, f64)>> {
+    text.split(',')
+        .map(|p| {
+            let bad = || {
+                Error::InvalidArgument(format!(
+                    "sweep point `{p}`: expected LAMBDA:ALPHA with lambda >= 0 and alpha in [0, 1], e.g. 5:0.5"
+                ))
+            };
+            let (l, a) = p.trim().split_once(':').ok_or_else(bad)?;
+            let (l, a): (f64, f64) = (
+                l.trim().parse().map_err(|_| bad())?,
+                a.trim().parse().map_err(|_| bad())?,
+            );
+            if !(l.is_finite() && l >= 0.0 && (0.0..=1.0).contains(&a)) {
+                return Err(bad());
+            }
+            Ok((l, a))
+        })
+        .collect()
+}
+
+/// The run folder of one point.
+pub fn point_dir(out: &Path, lambda: f64, alpha: f64) -> PathBuf {
+    out.join(format!("lambda{lambda}_alpha{alpha}"))
+}
+
+/// Trains every point not yet finished; returns the run folders in point order.
+pub fn train_points(
+    base: &TrainConfig,
+    points: &[(f64, f64)],
+    dataset: &A9Dataset,
+    out: &Path,
+    progress: &dyn Fn(&str) -> ProgressBar,
+) -> Result<Vec<PathBuf>> {
+    if base.method != Method::Rtr {
+        return Err(Error::InvalidArgument(format!(
+            "a lambda x alpha sweep trains RTR, but the base run file says method = \"{}\"",
+            base.method.name()
+        )));
+    }
+    points
+        .iter()
+        .map(|&(lambda, alpha)| {
+            let dir = point_dir(out, lambda, alpha);
+            if dir.join("policy.bpk").is_file() {
+                return Ok(dir);
+            }
+            let mut config = base.clone();
+            config.lambda = lambda;
+            config.alpha = alpha;
+            config.validate("sweep point")?;
+            let resume = dir.join("checkpoints").is_dir();
+            let bar = progress(&format!("lambda {lambda} alpha {alpha}"));
+            crate::train::session::train(config, dataset, &dir, resume, &bar)?;
+            bar.finish_and_clear();
+            Ok(dir)
+        })
+        .collect()
+}
+
+/// Evaluates the points' policies on `sets`; rows are named `lambda=L alpha=A`.
+pub fn evaluate_points(
+    points: &[(f64, f64)],
+    dirs: &[PathBuf],
+    sets: &[EvalScenes],
+    device: &burn::prelude::Device,
+    config: &EvalConfig,
+    progress: &ProgressBar,
+) -> Result<Vec<MethodResult>> {
+    let entries = dirs
+        .iter()
+        .map(|d| TrainedPolicy::load(d, device).map(|t| Entry::Trained(Box::new(t))))
+        .collect::<Result<Vec<_>>>()?;
+    let mut results = evaluate_entries(&entries, sets, device, config, progress)?;
+    for (r, (lambda, alpha)) in results.iter_mut().zip(points) {
+        r.method = format!("lambda={lambda} alpha={alpha}");
+    }
+    Ok(results)
+}
+
+/// Writes `results.json` and `table.md` of a sweep into `out`.
+pub fn write_sweep(out: &Path, results: &[MethodResult], sets: &[EvalScenes]) -> Result<()> {
+    let json = serde_json::to_string_pretty(&results_json(results))
+        .map_err(|e| Error::InvalidArgument(format!("results do not serialise: {e}")))?;
+    atomic_write(&out.join("results.json"), json.as_bytes())?;
+    let names: Vec<_> = sets.iter().map(|s| s.set).collect();
+    atomic_write(
+        &out.join("table.md"),
+        markdown_table(results, &names).as_bytes(),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn points_parse_and_bad_ones_are_named() {
+        assert_eq!(
+            parse_points("0:0, 5:0.5").unwrap(),
+            vec![(0.0, 0.0), (5.0, 0.5)]
+        );
+        for bad in ["5", "5:1.5", "-1:0.5", "x:0.2"] {
+            let e = parse_points(bad).unwrap_err().to_string();
+            assert!(e.contains(&format!("`{bad}`")), "{e}");
+        }
+        assert_eq!(
+            point_dir(Path::new("runs/sweep"), 5.0, 0.3),
+            Path::new("runs/sweep/lambda5_alpha0.3")
+        );
+    }
+}
