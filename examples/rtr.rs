@@ -1,37 +1,41 @@
-//! `cargo run --release --example rtr`: the end-to-end demo.
+//! `cargo run --release --example rtr`: the end-to-end demo on a fresh clone.
 //!
-//! Today it runs what rtr has: it loads the real A9 recording and its OpenDRIVE map, builds
-//! the lane graph and the train/test scenes, batches them into tensors, replays the logged
-//! drivers in closed loop through the differentiable simulator (inverse-model controls) and
-//! measures their infractions, lets the (untrained, paper-size) policy network drive the same
-//! scenes in closed loop, draws a scene, then generates one long-tail scenario per family
-//! (A9 background traffic, scripted heroes, validated) and measures how often the IDM
-//! baseline collides in them. Training runs through `rtr train` (not yet in this demo); the
-//! paper's evaluation table is not built yet (open issue); this demo says so instead of
-//! pretending.
+//! 1. Loads the shipped real A9 recording and its OpenDRIVE map and cuts them into scenes.
+//! 2. Draws the long-tail training / evaluation / OOD scenario sets (or reuses them).
+//! 3. Trains RTR and the IL baseline on the small budget (`experiments/main/small/`), or with
+//!    `--full` on the paper's (`experiments/main/`; hours to days on a CPU).
+//! 4. Evaluates both, every shipped checkpoint in `models/` and the IDM reference driver on
+//!    the nominal (real A9 test split), long-tail and OOD sets.
+//! 5. Prints the paper's table and writes `results.json`, `table.md` and the figures.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use burn::prelude::*;
 use clap::Parser;
-
-use burn::module::Module;
-use rtr::data::{A9Dataset, SceneConfig, a9, logged_infractions};
-use rtr::model::{ActionMode, ModelConfig, NetworkPolicy, PolicyNetwork};
-use rtr::render::{RenderOptions, render_scene};
-use rtr::scene::SceneBatch;
-use rtr::sim::{Dynamics, MapCaches, RolloutConfig, imitation_loss, replay_logs, rollout};
+use indicatif::{ProgressBar, ProgressStyle};
+use rtr::backend::Backend;
+use rtr::data::{A9Dataset, SceneConfig, TrafficStatistics, a9};
+use rtr::eval::study::{Entry, evaluate_entries, write_study};
+use rtr::eval::{EvalConfig, EvalSet, TrainedPolicy, load_sets, markdown_table};
+use rtr::scenario::{GenerateConfig, builtin_families, generate_sets, load_families};
+use rtr::train::TrainConfig;
 
 #[derive(Parser)]
-#[command(about = "rtr end-to-end demo on the shipped A9 recording")]
+#[command(about = "rtr end-to-end demo: train RTR and IL, evaluate them with the shipped models")]
 struct Args {
-    /// Folder for pictures and the JSON report.
+    /// Folder for runs, scenarios, the table and the figures.
     #[arg(long, default_value = "results/demo")]
     out: PathBuf,
-    /// Scenes per tensor batch.
-    #[arg(long, default_value_t = 32)]
-    batch: usize,
+    /// Train with the paper's budget and network (experiments/main/*.toml) instead of the
+    /// small one (experiments/main/small/*.toml).
+    #[arg(long)]
+    full: bool,
+    /// Device backend for training and evaluation.
+    #[arg(long, default_value = "ndarray")]
+    backend: Backend,
+    /// Skip training; evaluate the shipped models/ only.
+    #[arg(long)]
+    no_train: bool,
 }
 
 fn main() -> std::process::ExitCode {
@@ -44,169 +48,118 @@ fn main() -> std::process::ExitCode {
     }
 }
 
-fn run(args: Args) -> rtr::Result<()> {
-    let clock = Instant::now();
-    let dataset = A9Dataset::load(&a9::default_dir())?;
-    let rec = &dataset.recording;
-    println!(
-        "loaded {} vehicles, {:.1} s at {:.2} Hz; map {:.2} m, {} driving lanes, {} lane-graph nodes ({:.1} s)",
-        rec.tracks.len(),
-        rec.duration(),
-        rec.fps,
-        dataset.map.road_length(),
-        dataset.map.driving_lane_count(),
-        dataset.lane_graph.nodes.len(),
-        clock.elapsed().as_secs_f64()
-    );
-
-    let config = SceneConfig::default();
-    let split = dataset.scenes(&config)?;
-    println!(
-        "scenes: {} train, {} test (dt {} s, {} s history, {} s future, split at {:.1} s)",
-        split.train.len(),
-        split.test.len(),
-        config.dt,
-        config.history_s,
-        config.future_s,
-        split.split_time
-    );
-
-    #[allow(deprecated)] // NdArray is the CPU backend every build has; flex is a feature.
-    let device = Device::ndarray();
-    let first: Vec<_> = split.test.iter().take(args.batch).collect();
-    let batch = SceneBatch::from_scenes(&first, &device)?;
-    println!(
-        "tensor batch: agent_states {:?}, lane_features {:?}, successors {:?}",
-        batch.agent_states.dims(),
-        batch.lane_features.dims(),
-        batch.lane_successors.index.dims()
-    );
-
-    // Closed-loop log replay: the inverse model's controls drive every controlled agent of the
-    // test scenes through the differentiable simulator.
-    let dynamics = Dynamics::bicycle(config.dt);
-    let test: Vec<_> = split.test.iter().collect();
-    let (replay, _) = replay_logs(&test, &dynamics, &device)?;
-    println!(
-        "closed-loop log replay of {} test scenes: {} agent-steps, position error mean {:.3} m, \
-         max {:.3} m; {} collisions, {} off-road",
-        replay.scenes,
-        replay.agent_steps,
-        replay.mean_position_error_m,
-        replay.max_position_error_m,
-        replay.collisions,
-        replay.offroad
-    );
-    // The policy network (paper size, random weights until training exists) driving the
-    // batch in closed loop: the plumbing end to end, not a result.
-    let started = Instant::now();
-    device.seed(0);
-    let network = PolicyNetwork::new(&ModelConfig::default(), &device);
-    let mut policy = NetworkPolicy::new(&network, &batch, ActionMode::Mean);
-    let driven = rollout(
-        &first,
-        &batch,
-        &dynamics,
-        &mut policy,
-        &mut MapCaches::default(),
-        &RolloutConfig::default(),
-    )?;
-    let loss = imitation_loss(&driven, &batch, 1.0)
-        .mean()
-        .into_scalar::<f32>();
-    let count = |flags: Tensor<3, burn::tensor::Bool>| flags.int().sum().into_scalar::<i64>();
-    println!(
-        "untrained policy network ({} parameters) drove {} test scenes for {} steps in {:.1} s: \
-         Huber imitation loss {:.2}, {} collisions, {} off-road (train with `rtr train --config experiments/main/rtr.toml`)",
-        network.num_params(),
-        first.len(),
-        driven.steps,
-        started.elapsed().as_secs_f64(),
-        loss,
-        count(driven.collision),
-        count(driven.offroad)
-    );
-
-    let all = logged_infractions(rec, &dataset.map);
-    println!(
-        "whole recording at 29.97 Hz: {:.2}% of vehicles ever off-road, {:.2}% ever overlap another",
-        all.offroad_pct(),
-        all.collision_pct()
-    );
-
-    let picture = args.out.join("a9-test-scene.png");
-    if let Some(scene) = split.test.get(split.test.len() / 2) {
-        render_scene(scene, &picture, &RenderOptions::default())?;
-        render_scene(
-            scene,
-            &picture.with_extension("svg"),
-            &RenderOptions::default(),
-        )?;
-        println!(
-            "drew scene {} to {} (and .svg)",
-            scene.id,
-            picture.display()
-        );
+fn progress(prefix: &str) -> ProgressBar {
+    let bar = ProgressBar::new(0);
+    if let Ok(style) = ProgressStyle::with_template(
+        "{prefix} [{elapsed_precise}] {bar:30} {pos}/{len}, eta {eta} {msg}",
+    ) {
+        bar.set_style(style);
     }
-
-    long_tail(&dataset, &args)?;
-
-    println!(
-        "\ntraining: `cargo run --release -- train --config experiments/main/<method>.toml`\n\
-         sim-to-real: `cargo run --release --example sim2real`\n\
-         not yet built (open issue): evaluation table and training in this demo (#7).\n\
-         done in {:.1} s",
-        clock.elapsed().as_secs_f64()
-    );
-    Ok(())
+    bar.set_prefix(prefix.to_string());
+    bar
 }
 
-/// One concrete long-tail scenario per family, validated against the IDM reference driver;
-/// reports how many reference runs had a collision and draws the first OOD scenario.
-fn long_tail(dataset: &A9Dataset, args: &Args) -> rtr::Result<()> {
-    use rtr::scenario::{GenerateConfig, builtin_families, generate_sets, load_families};
-    let started = Instant::now();
-    let families = load_families(&builtin_families())?;
-    let stats = rtr::data::TrafficStatistics::from_recording(&dataset.recording, &dataset.map, 1.0);
-    let train = families
-        .iter()
-        .filter(|f| f.set == rtr::scenario::FamilySet::Train)
-        .count();
-    let sets = generate_sets(
-        &families,
-        &stats,
-        &GenerateConfig {
-            in_distribution: train,
-            ood: families.len() - train,
-            ..Default::default()
-        },
-    )?;
-    let all: Vec<_> = sets
-        .train
-        .iter()
-        .chain(&sets.eval)
-        .chain(&sets.ood)
-        .collect();
-    let collided = all
-        .iter()
-        .filter(|s| !s.reference.collided_agents.is_empty())
-        .count();
+fn run(args: Args) -> rtr::Result<()> {
+    let clock = Instant::now();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let dataset = A9Dataset::load(&a9::default_dir())?;
+    let split = dataset.scenes(&SceneConfig::default())?;
     println!(
-        "long-tail: {} families ({} held out), one scenario each in {:.1} s; the IDM baseline \
-         collides in {collided} of them",
-        families.len(),
-        families.len() - train,
-        started.elapsed().as_secs_f64()
+        "A9: {} vehicles over {:.0} s; {} training and {} test scenes (dt 0.5 s, 2 s history, 6 s future)",
+        dataset.recording.tracks.len(),
+        dataset.recording.duration(),
+        split.train.len(),
+        split.test.len()
     );
-    if let Some(first) = sets.ood.first() {
-        let path = args.out.join(format!("{}.json", first.id()));
-        first.write(&path)?;
+
+    let scenarios = args.out.join("scenarios");
+    if scenarios.join("ood").is_dir() {
+        println!("long-tail sets: reusing {}", scenarios.display());
+    } else {
+        let started = Instant::now();
+        let families = load_families(&builtin_families())?;
+        let stats = TrafficStatistics::from_recording(&dataset.recording, &dataset.map, 1.0);
+        let sets = generate_sets(&families, &stats, &GenerateConfig::default())?;
+        let written = sets.write(&scenarios)?;
         println!(
-            "wrote {} (draw it: cargo run --release -- render --scenario {} --out {})",
-            path.display(),
-            path.display(),
-            args.out.join(first.id()).display()
+            "long-tail sets: {} train / {} eval / {} OOD scenarios from {} families in {:.0} s -> {}",
+            sets.train.len(),
+            sets.eval.len(),
+            sets.ood.len(),
+            families.len(),
+            started.elapsed().as_secs_f64(),
+            scenarios.display()
         );
+        debug_assert_eq!(written, sets.train.len() + sets.eval.len() + sets.ood.len());
     }
+
+    let device = args.backend.device(false)?;
+    let mut entries = Vec::new();
+    if !args.no_train {
+        let folder = if args.full {
+            root.join("experiments/main")
+        } else {
+            root.join("experiments/main/small")
+        };
+        for method in ["il", "rtr"] {
+            let run_dir = args.out.join("runs").join(method);
+            if !run_dir.join("policy.bpk").is_file() {
+                let mut config =
+                    TrainConfig::from_toml_file(&folder.join(format!("{method}.toml")))?;
+                config.data.longtail_dir = Some(scenarios.clone());
+                config.run.backend = args.backend;
+                let started = Instant::now();
+                let bar = progress(config.method.name());
+                let resume = run_dir.join("checkpoints").is_dir();
+                rtr::train::session::train(config, &dataset, &run_dir, resume, &bar)?;
+                bar.finish_and_clear();
+                println!(
+                    "trained {method} in {:.0} s -> {}",
+                    started.elapsed().as_secs_f64(),
+                    run_dir.display()
+                );
+            } else {
+                println!("trained {method}: reusing {}", run_dir.display());
+            }
+            entries.push(Entry::Trained(Box::new(TrainedPolicy::load(
+                &run_dir, &device,
+            )?)));
+        }
+    }
+    let models = root.join("models");
+    let mut shipped: Vec<PathBuf> = std::fs::read_dir(&models)
+        .map_err(|e| rtr::Error::io(&models, e))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.join("policy.bpk").is_file())
+        .collect();
+    shipped.sort();
+    for path in &shipped {
+        entries.push(Entry::Trained(Box::new(TrainedPolicy::load(
+            path, &device,
+        )?)));
+    }
+    entries.push(Entry::idm());
+    println!(
+        "evaluating {} policies ({} trained here, {} shipped in models/, IDM) on nominal, long-tail and OOD",
+        entries.len(),
+        entries.len() - 1 - shipped.len(),
+        shipped.len()
+    );
+
+    let sets = [EvalSet::Nominal, EvalSet::Longtail, EvalSet::Ood];
+    let scenes = load_sets(&dataset, Some(&scenarios), &sets)?;
+    let bar = progress("eval");
+    let results = evaluate_entries(&entries, &scenes, &device, &EvalConfig::default(), &bar)?;
+    bar.finish_and_clear();
+    // Rows trained here are told apart from the shipped ones by their folder.
+    println!("\n{}", markdown_table(&results, &sets));
+    let written = write_study(&args.out, &entries, &results, &scenes, &device)?;
+    println!(
+        "wrote {} files (results.json, table.md, Pareto plots, histograms, curves, rollouts) to {}\n\
+         done in {:.0} s",
+        written.len(),
+        args.out.display(),
+        clock.elapsed().as_secs_f64()
+    );
     Ok(())
 }

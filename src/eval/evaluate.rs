@@ -2,9 +2,10 @@
 //! scenes are rolled out (heroes follow their scripts), each scene is tallied against its log,
 //! and the tallies become the table's metrics with bootstrap intervals.
 //!
-//! Evaluation rollouts keep every agent to the end (no early termination), so FDE, ATE, CTE
-//! and the feature histograms cover the whole horizon for every agent; an infraction still
-//! counts the agent once. The policy acts with its mean action (deterministic).
+//! Evaluation rollouts keep every agent to the end (no early termination), so every agent
+//! still on the map is measured at the 5 s horizon and the feature histograms cover the whole
+//! horizon; an infraction still counts the agent once. The policy acts with its mean action
+//! (deterministic); the realism score alone samples.
 
 use std::collections::BTreeMap;
 

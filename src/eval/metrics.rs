@@ -1,5 +1,5 @@
 //! The paper's metrics (appendix "Metrics") from per-scene tallies: collision and off-road %
-//! of policy-controlled agents, FDE at 5 s, ATE and CTE against the log, and JSDs of feature
+//! of policy-controlled agents, FDE at 5 s and its along-/cross-track split (ATE, CTE), and JSDs of feature
 //! histograms (simulated vs logged). Every metric is a function of tallies summed over scenes,
 //! so the bootstrap over scenes resamples tallies ([`super::bootstrap`]).
 
@@ -17,13 +17,13 @@ pub struct SceneTally {
     /// Agents with at least one collision / off-road step.
     pub collided: f64,
     pub offroad: f64,
-    /// FDE summed over the agents simulated and logged at the FDE horizon, and their count.
+    /// FDE, ATE and CTE summed over the agents simulated and logged at the FDE horizon, and
+    /// their count. ATE and CTE split the final displacement along and across the logged path
+    /// (as the paper's table, where ATE^2 + CTE^2 ~ FDE^2).
     pub fde_sum: f64,
-    pub fde_agents: f64,
-    /// ATE and CTE summed over agent-steps simulated and logged, and their count.
     pub ate_sum: f64,
     pub cte_sum: f64,
-    pub tracked_steps: f64,
+    pub fde_agents: f64,
     /// Per [`Feature::ALL`]: histograms of simulated and of logged agent-steps.
     pub simulated: Vec<Histogram>,
     pub logged: Vec<Histogram>,
@@ -36,10 +36,9 @@ impl Default for SceneTally {
             collided: 0.0,
             offroad: 0.0,
             fde_sum: 0.0,
-            fde_agents: 0.0,
             ate_sum: 0.0,
             cte_sum: 0.0,
-            tracked_steps: 0.0,
+            fde_agents: 0.0,
             simulated: Feature::ALL.iter().map(|f| f.histogram()).collect(),
             logged: Feature::ALL.iter().map(|f| f.histogram()).collect(),
         }
@@ -56,10 +55,9 @@ impl Additive for SceneTally {
         self.collided += t * o.collided;
         self.offroad += t * o.offroad;
         self.fde_sum += t * o.fde_sum;
-        self.fde_agents += t * o.fde_agents;
         self.ate_sum += t * o.ate_sum;
         self.cte_sum += t * o.cte_sum;
-        self.tracked_steps += t * o.tracked_steps;
+        self.fde_agents += t * o.fde_agents;
         for (a, b) in self.simulated.iter_mut().zip(&o.simulated) {
             a.add_counts(b, t);
         }
@@ -130,8 +128,8 @@ impl Metric {
             Metric::CollisionPct => ratio(100.0 * t.collided, t.agents),
             Metric::OffroadPct => ratio(100.0 * t.offroad, t.agents),
             Metric::FdeM => ratio(t.fde_sum, t.fde_agents),
-            Metric::AteM => ratio(t.ate_sum, t.tracked_steps),
-            Metric::CteM => ratio(t.cte_sum, t.tracked_steps),
+            Metric::AteM => ratio(t.ate_sum, t.fde_agents),
+            Metric::CteM => ratio(t.cte_sum, t.fde_agents),
             Metric::Jsd(f) => {
                 let k = Feature::ALL.iter().position(|g| *g == f)?;
                 jensen_shannon(&t.simulated[k], &t.logged[k])
@@ -151,10 +149,9 @@ mod tests {
             collided: 1.0,
             offroad: 0.0,
             fde_sum: 6.0,
-            fde_agents: 3.0,
             ate_sum: 2.0,
             cte_sum: 1.0,
-            tracked_steps: 10.0,
+            fde_agents: 3.0,
             ..SceneTally::default()
         };
         let b = SceneTally {
@@ -162,18 +159,17 @@ mod tests {
             collided: 0.0,
             offroad: 3.0,
             fde_sum: 1.0,
+            ate_sum: 2.0,
+            cte_sum: 1.0,
             fde_agents: 1.0,
-            ate_sum: 8.0,
-            cte_sum: 4.0,
-            tracked_steps: 10.0,
             ..SceneTally::default()
         };
         a.add_scaled(&b, 1.0);
         assert_eq!(Metric::CollisionPct.value(&a), Some(10.0));
         assert_eq!(Metric::OffroadPct.value(&a), Some(30.0));
         assert_eq!(Metric::FdeM.value(&a), Some(7.0 / 4.0));
-        assert_eq!(Metric::AteM.value(&a), Some(0.5));
-        assert_eq!(Metric::CteM.value(&a), Some(0.25));
+        assert_eq!(Metric::AteM.value(&a), Some(1.0));
+        assert_eq!(Metric::CteM.value(&a), Some(0.5));
         // No feature samples: no JSD.
         assert_eq!(Metric::Jsd(Feature::Speed).value(&a), None);
         assert_eq!(Metric::FdeM.value(&SceneTally::default()), None);

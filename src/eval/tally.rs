@@ -120,8 +120,9 @@ fn add_features(hist: &mut [Histogram], features: StepFeatures) {
 /// Tallies each scene of a rollout over `scenes` (the batch's scenes, in order).
 ///
 /// - Infractions: a controlled agent counts once if any step of the rollout flags it.
-/// - With `with_log` (real scenes, whose controlled agents have logged futures): FDE at step
-///   `fde_step` for agents simulated and logged then; ATE/CTE at every step where both are;
+/// - With `with_log` (real scenes, whose controlled agents have logged futures): FDE and its
+///   along-/cross-track split (ATE, CTE) at step `fde_step`, for agents simulated and logged
+///   then;
 ///   features of the simulated and of the logged agent-steps over the rollout's steps.
 pub fn tally_rollout(
     scenes: &[&Scene],
@@ -210,18 +211,16 @@ fn tally_scene(
                     features_of(scene, i, before, &log_poses, &log_present),
                 );
             }
-            let (Some(l), true, Some(path)) = (logged, simulated, &paths[i]) else {
+            let (Some(l), true, Some(path), true) = (logged, simulated, &paths[i], t == fde_step)
+            else {
                 continue;
             };
             let s = &sim_all[i];
             let (ate, cte) = path.errors([s.x, s.y], [l.x, l.y]);
+            tally.fde_sum += displacement([s.x, s.y], [l.x, l.y]);
             tally.ate_sum += ate;
             tally.cte_sum += cte;
-            tally.tracked_steps += 1.0;
-            if t == fde_step {
-                tally.fde_sum += displacement([s.x, s.y], [l.x, l.y]);
-                tally.fde_agents += 1.0;
-            }
+            tally.fde_agents += 1.0;
         }
     }
     tally
