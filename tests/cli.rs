@@ -394,7 +394,11 @@ fn eval_prints_the_table_row_and_writes_the_documented_json() {
         assert!(nominal[format!("{key}_ci")].is_number(), "{key}_ci");
     }
     assert_eq!(nominal["scenes"], 100);
-    for file in ["table.md", "histograms_il.svg", "training_curves.svg"] {
+    for file in [
+        "table.md",
+        "figures/histograms_il.svg",
+        "figures/training_curves.svg",
+    ] {
         assert!(out_dir.join(file).is_file(), "{file} missing");
     }
 }

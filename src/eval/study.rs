@@ -86,21 +86,28 @@ impl EvalPolicy for TrainedRef<'_> {
     }
 }
 
-/// Row names: the method, or `method (folder)` where two rows share a method.
+/// Row names: the method, or `method (parent/folder)` where two rows share a method (e.g. a
+/// run trained here and the shipped model of the same method).
 fn row_names(entries: &[(String, String)]) -> Vec<String> {
     entries
         .iter()
         .map(|(method, path)| {
             let shared = entries.iter().filter(|(m, _)| m == method).count() > 1;
-            if shared {
-                let folder = Path::new(path)
-                    .parent()
-                    .and_then(|p| p.file_name())
-                    .map_or(path.clone(), |f| f.to_string_lossy().into_owned());
-                format!("{method} ({folder})")
-            } else {
-                method.clone()
+            if !shared {
+                return method.clone();
             }
+            let folder: Vec<String> = Path::new(path)
+                .parent()
+                .map(|p| {
+                    p.components()
+                        .rev()
+                        .take(2)
+                        .map(|c| c.as_os_str().to_string_lossy().into_owned())
+                        .collect()
+                })
+                .unwrap_or_default();
+            let folder: Vec<&str> = folder.iter().rev().map(String::as_str).collect();
+            format!("{method} ({})", folder.join("/"))
         })
         .collect()
 }
@@ -143,10 +150,11 @@ pub fn evaluate_entries(
         .collect()
 }
 
-/// Writes `results.json`, `table.md` and the figures into `dir`: the Pareto plots (against
-/// nominal FDE and against the mean JSD) when both nominal and long-tail were evaluated,
-/// each method's feature histograms, training curves of the trained entries, and the first
-/// nominal scene rolled out by each trained method beside its log. Returns what it wrote.
+/// Writes `results.json` and `table.md` into `dir` and the figures into `dir/figures/`: the
+/// Pareto plots (long-tail collisions against nominal FDE and against nominal speed JSD) when
+/// both sets were evaluated, each method's feature histograms, training curves of the trained
+/// entries, and the first scene of each set driven by every entry beside its log. Returns
+/// what it wrote.
 pub fn write_study(
     dir: &Path,
     entries: &[Entry],
@@ -166,11 +174,13 @@ pub fn write_study(
         markdown_table(results, &set_names).as_bytes(),
     )?;
     written.push(dir.join("table.md"));
+    let figures = dir.join("figures");
+    std::fs::create_dir_all(&figures).map_err(|e| Error::io(&figures, e))?;
     for realism in [Metric::FdeM, Metric::Jsd(super::features::Feature::Speed)] {
-        written.extend(plots::pareto(dir, results, realism)?);
+        written.extend(plots::pareto(&figures, results, realism)?);
     }
     for r in results {
-        written.extend(plots::histograms(dir, r)?);
+        written.extend(plots::histograms(&figures, r)?);
     }
     let curves: Vec<(String, Vec<crate::train::CurveRow>)> = entries
         .iter()
@@ -184,7 +194,7 @@ pub fn write_study(
             Entry::Idm { .. } => None,
         })
         .collect();
-    written.extend(plots::training_curves(dir, &curves)?);
+    written.extend(plots::training_curves(&figures, &curves)?);
     // The first scene of each set, driven by every entry, beside its log.
     for set in sets {
         if set.scenes.is_empty() {
@@ -196,7 +206,11 @@ pub fn write_study(
             let sim = simulated_scenes(policy.as_ref(), dynamics, set, &[0], device)?;
             rollouts.extend(sim.into_iter().map(|s| (r.method.clone(), s)));
         }
-        written.extend(plots::rollout_pictures(dir, &set.scenes[0], &rollouts)?);
+        written.extend(plots::rollout_pictures(
+            &figures,
+            &set.scenes[0],
+            &rollouts,
+        )?);
     }
     Ok(written)
 }
@@ -208,10 +222,13 @@ mod tests {
     #[test]
     fn rows_sharing_a_method_are_told_apart_by_folder() {
         let entries = [
-            ("RTR".to_string(), "runs/a/policy.bpk".to_string()),
-            ("RTR".to_string(), "runs/b/policy.bpk".to_string()),
+            ("RTR".to_string(), "results/runs/rtr/policy.bpk".to_string()),
+            ("RTR".to_string(), "/x/models/rtr/policy.bpk".to_string()),
             ("IL".to_string(), "models/il/policy.bpk".to_string()),
         ];
-        assert_eq!(row_names(&entries), ["RTR (a)", "RTR (b)", "IL"]);
+        assert_eq!(
+            row_names(&entries),
+            ["RTR (runs/rtr)", "RTR (models/rtr)", "IL"]
+        );
     }
 }
