@@ -146,8 +146,37 @@ fn batches(windows: &[(usize, usize)], batch: usize) -> Vec<Vec<usize>> {
         .collect()
 }
 
-/// Per-scene tallies of `policy` on `set`, in scene order. Batches run in parallel (rayon),
-/// each on its own map caches.
+/// Runs `per_batch` on every batch of `set` (same-window scenes, at most `config.batch`) in
+/// parallel (rayon), each worker with its own map caches, and returns its per-scene results
+/// in scene order. `per_batch` gets the caches, the batch's index and its scene indices.
+fn per_scene<T: Send>(
+    set: &EvalScenes,
+    config: &EvalConfig,
+    per_batch: impl Fn(&mut MapCaches, usize, &[usize]) -> Result<Vec<T>> + Sync,
+) -> Result<Vec<T>> {
+    let windows: Vec<(usize, usize)> = set
+        .scenes
+        .iter()
+        .map(|s| (s.history_steps, s.future_steps))
+        .collect();
+    let groups = batches(&windows, config.batch);
+    let per_group: Vec<Result<Vec<T>>> = groups
+        .par_iter()
+        .enumerate()
+        .map_init(MapCaches::default, |caches, (g, group)| {
+            per_batch(caches, g, group)
+        })
+        .collect();
+    let mut out: Vec<Option<T>> = (0..set.scenes.len()).map(|_| None).collect();
+    for (group, results) in groups.iter().zip(per_group) {
+        for (&k, t) in group.iter().zip(results?) {
+            out[k] = Some(t);
+        }
+    }
+    Ok(out.into_iter().flatten().collect())
+}
+
+/// Per-scene tallies of `policy` on `set`, in scene order.
 pub fn evaluate_tallies(
     policy: &dyn EvalPolicy,
     dynamics: &Dynamics,
@@ -155,29 +184,12 @@ pub fn evaluate_tallies(
     device: &burn::prelude::Device,
     config: &EvalConfig,
 ) -> Result<Vec<SceneTally>> {
-    let windows: Vec<(usize, usize)> = set
-        .scenes
-        .iter()
-        .map(|s| (s.history_steps, s.future_steps))
-        .collect();
-    let groups = batches(&windows, config.batch);
-    let per_group: Vec<Result<Vec<(usize, SceneTally)>>> = groups
-        .par_iter()
-        .map_init(MapCaches::default, |caches, group| {
-            let (batch, out) = rollout_group(policy, dynamics, set, group, device, caches, None)?;
-            let scenes: Vec<&Scene> = group.iter().map(|&k| &set.scenes[k]).collect();
-            let fde_step = (config.fde_horizon_s / batch.dt).round() as usize;
-            let tallies = tally_rollout(&scenes, &out, fde_step, set.set.has_logs())?;
-            Ok(group.iter().copied().zip(tallies).collect())
-        })
-        .collect();
-    let mut tallies: Vec<Option<SceneTally>> = vec![None; set.scenes.len()];
-    for group in per_group {
-        for (k, t) in group? {
-            tallies[k] = Some(t);
-        }
-    }
-    Ok(tallies.into_iter().flatten().collect())
+    per_scene(set, config, |caches, _, group| {
+        let (batch, out) = rollout_group(policy, dynamics, set, group, device, caches, None)?;
+        let scenes: Vec<&Scene> = group.iter().map(|&k| &set.scenes[k]).collect();
+        let fde_step = (config.fde_horizon_s / batch.dt).round() as usize;
+        tally_rollout(&scenes, &out, fde_step, set.set.has_logs())
+    })
 }
 
 /// Per-scene WOSAC-style realism tallies ([`super::realism`]) of `policy` on a set with logs:
@@ -190,63 +202,46 @@ pub fn realism_tallies(
     device: &burn::prelude::Device,
     config: &EvalConfig,
 ) -> Result<Vec<RealismTally>> {
-    let windows: Vec<(usize, usize)> = set
-        .scenes
-        .iter()
-        .map(|s| (s.history_steps, s.future_steps))
-        .collect();
-    let groups = batches(&windows, config.batch);
-    let per_group: Vec<Result<Vec<(usize, RealismTally)>>> = groups
-        .par_iter()
-        .enumerate()
-        .map_init(MapCaches::default, |caches, (g, group)| {
-            let scenes: Vec<&Scene> = group.iter().map(|&k| &set.scenes[k]).collect();
-            let mut sampled = Vec::with_capacity(config.realism_samples);
-            for k in 0..config.realism_samples {
-                let seed = crate::train::trainer::stream_seed(config.seed, g, k as u64);
-                let (_, out) =
-                    rollout_group(policy, dynamics, set, group, device, caches, Some(seed))?;
-                sampled.push(simulated_features(&scenes, &out));
-            }
-            Ok(group
-                .iter()
-                .enumerate()
-                .map(|(b, &index)| {
-                    let scene = scenes[b];
-                    let logged = logged_features(scene, scene.future_steps);
-                    let mut tally = RealismTally::default();
-                    for (i, log_rows) in logged.iter().enumerate() {
-                        if log_rows.is_empty() {
-                            continue;
-                        }
-                        let mut samples: [Vec<f64>; 4] = Default::default();
-                        let mut values: [Vec<f64>; 4] = Default::default();
-                        for run in &sampled {
-                            for f in run[b][i].iter().flatten() {
-                                for (k, v) in f.iter().enumerate() {
-                                    samples[k].extend(v);
-                                }
-                            }
-                        }
-                        for f in log_rows.iter().flatten() {
-                            for (k, v) in f.iter().enumerate() {
-                                values[k].extend(v);
-                            }
-                        }
-                        tally.add_scaled(&agent_tally(&samples, &values), 1.0);
-                    }
-                    (index, tally)
-                })
-                .collect())
-        })
-        .collect();
-    let mut tallies: Vec<RealismTally> = vec![RealismTally::default(); set.scenes.len()];
-    for group in per_group {
-        for (k, t) in group? {
-            tallies[k] = t;
+    per_scene(set, config, |caches, g, group| {
+        let scenes: Vec<&Scene> = group.iter().map(|&k| &set.scenes[k]).collect();
+        let mut sampled = Vec::with_capacity(config.realism_samples);
+        for k in 0..config.realism_samples {
+            let seed = crate::train::trainer::stream_seed(config.seed, g, k as u64);
+            let (_, out) = rollout_group(policy, dynamics, set, group, device, caches, Some(seed))?;
+            sampled.push(simulated_features(&scenes, &out));
         }
-    }
-    Ok(tallies)
+        Ok(scenes
+            .iter()
+            .enumerate()
+            .map(|(b, scene)| {
+                let mut tally = RealismTally::default();
+                for (i, log_rows) in logged_features(scene, scene.future_steps)
+                    .iter()
+                    .enumerate()
+                {
+                    if log_rows.is_empty() {
+                        continue;
+                    }
+                    let mut samples: [Vec<f64>; 4] = Default::default();
+                    let mut values: [Vec<f64>; 4] = Default::default();
+                    for run in &sampled {
+                        for f in run[b][i].iter().flatten() {
+                            for (k, v) in f.iter().enumerate() {
+                                samples[k].extend(v);
+                            }
+                        }
+                    }
+                    for f in log_rows.iter().flatten() {
+                        for (k, v) in f.iter().enumerate() {
+                            values[k].extend(v);
+                        }
+                    }
+                    tally.add_scaled(&agent_tally(&samples, &values), 1.0);
+                }
+                tally
+            })
+            .collect())
+    })
 }
 
 /// One set's row of the table: each metric with its bootstrap half-width (`None` where the

@@ -1,7 +1,8 @@
 //! The study's figures: the Pareto plot (long-tail collisions against nominal realism, the
 //! baselines' frontier shaded), the feature histograms behind each JSD, training curves, and
-//! top-down rollouts beside the log. Charts are SVG (text needs no fonts there); rollouts are
-//! PNG and SVG through [`crate::render`].
+//! top-down rollouts beside the log. Charts are SVG (their text needs no fonts there; a PNG
+//! chart would need system fonts); rollouts are PNG through [`crate::render`], whose SVG of a
+//! whole road is ten times the size (`rtr render` draws one when wanted).
 
 use std::path::{Path, PathBuf};
 
@@ -34,8 +35,10 @@ const PALETTE: [RGBColor; 8] = [
     RGBColor(214, 39, 40),
 ];
 
-/// The method the paper proposes; every other method is a baseline of the frontier.
+/// The method the paper proposes; every other learned method is a baseline of the frontier.
 const PROPOSED: &str = "RTR";
+/// The hand-written reference driver: drawn, but not a learned baseline of the frontier.
+const REFERENCE: &str = "IDM";
 
 /// Points (x = nominal `realism`, y = long-tail collision %) of the methods that have both.
 fn pareto_points(methods: &[MethodResult], realism: Metric) -> Vec<(String, f64, f64)> {
@@ -63,7 +66,7 @@ pub fn frontier(points: &[(f64, f64)]) -> Vec<(f64, f64)> {
 }
 
 /// `pareto_<metric>.svg`: long-tail collision % against a nominal realism metric; the region
-/// the baselines dominate is shaded, so a method outside it is beyond their frontier.
+/// the learned baselines dominate is shaded, so a method outside it is beyond their frontier.
 pub fn pareto(dir: &Path, methods: &[MethodResult], realism: Metric) -> Result<Option<PathBuf>> {
     let points = pareto_points(methods, realism);
     if points.is_empty() {
@@ -97,7 +100,7 @@ fn draw_pareto(path: &Path, points: &[(String, f64, f64)], realism: Metric) -> D
         .draw()?;
     let baselines: Vec<(f64, f64)> = points
         .iter()
-        .filter(|p| p.0 != PROPOSED)
+        .filter(|p| p.0 != PROPOSED && p.0 != REFERENCE)
         .map(|p| (p.1, p.2))
         .collect();
     let front = frontier(&baselines);
@@ -307,7 +310,7 @@ pub fn simulated_scene(scene: &Scene, poses: &[Vec<[f64; 4]>], present: &[Vec<bo
     out
 }
 
-/// `rollout_<scene>_log.png|svg` and `rollout_<scene>_<method>.png|svg`: the same view of the
+/// `rollout_<scene>_log.png` and `rollout_<scene>_<method>.png`: the same view of the
 /// log and of each method's rollout (history, current boxes, future paths). A generated
 /// scene's "log" holds only its initial state.
 pub fn rollout_pictures(
@@ -336,11 +339,9 @@ pub fn rollout_pictures(
             .map(|(m, s)| (m.to_lowercase().replace(['+', ' '], "_"), s)),
     );
     for (name, scene) in named {
-        for ext in ["png", "svg"] {
-            let path = dir.join(format!("rollout_{id}_{name}.{ext}"));
-            render_scene(scene, &path, &options)?;
-            written.push(path);
-        }
+        let path = dir.join(format!("rollout_{id}_{name}.png"));
+        render_scene(scene, &path, &options)?;
+        written.push(path);
     }
     Ok(written)
 }

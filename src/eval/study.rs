@@ -14,7 +14,6 @@ use super::trained::TrainedPolicy;
 use crate::driver::IdmParams;
 use crate::error::{Error, Result};
 use crate::io::atomic_write;
-use crate::scene::Scene;
 use crate::sim::{ActionLimits, Dynamics};
 
 /// A row of the study: a trained policy, or the IDM reference driver.
@@ -42,47 +41,21 @@ impl Entry {
     }
 
     /// Method name, source, policy and simulator.
-    fn parts(&self) -> (String, String, Box<dyn EvalPolicy + '_>, &Dynamics) {
+    fn parts(&self) -> (String, String, &dyn EvalPolicy, &Dynamics) {
         match self {
             Entry::Trained(t) => (
                 t.method.clone(),
                 t.path.display().to_string(),
-                Box::new(TrainedRef(&t.network)),
+                &t.network,
                 &t.dynamics,
             ),
             Entry::Idm { driver, dynamics } => (
                 "IDM".into(),
                 "driver::IdmDriver (not learned)".into(),
-                Box::new(IdmRef(driver)),
+                driver,
                 dynamics,
             ),
         }
-    }
-}
-
-struct IdmRef<'a>(&'a IdmBaseline);
-
-impl EvalPolicy for IdmRef<'_> {
-    fn policy<'a>(
-        &'a self,
-        scenes: &[&Scene],
-        batch: &crate::scene::SceneBatch,
-        noise: Option<u64>,
-    ) -> Box<dyn crate::sim::Policy + 'a> {
-        self.0.policy(scenes, batch, noise)
-    }
-}
-
-struct TrainedRef<'a>(&'a crate::model::PolicyNetwork);
-
-impl EvalPolicy for TrainedRef<'_> {
-    fn policy<'a>(
-        &'a self,
-        scenes: &[&Scene],
-        batch: &crate::scene::SceneBatch,
-        noise: Option<u64>,
-    ) -> Box<dyn crate::sim::Policy + 'a> {
-        self.0.policy(scenes, batch, noise)
     }
 }
 
@@ -136,7 +109,7 @@ pub fn evaluate_entries(
                 .iter()
                 .map(|set| {
                     progress.set_message(format!("{name} on {}", set.set.name()));
-                    let r = evaluate(policy.as_ref(), dynamics, set, device, config);
+                    let r = evaluate(*policy, dynamics, set, device, config);
                     progress.inc(1);
                     r
                 })
@@ -203,7 +176,7 @@ pub fn write_study(
         let mut rollouts = Vec::new();
         for (e, r) in entries.iter().zip(results) {
             let (_, _, policy, dynamics) = e.parts();
-            let sim = simulated_scenes(policy.as_ref(), dynamics, set, &[0], device)?;
+            let sim = simulated_scenes(policy, dynamics, set, &[0], device)?;
             rollouts.extend(sim.into_iter().map(|s| (r.method.clone(), s)));
         }
         written.extend(plots::rollout_pictures(
