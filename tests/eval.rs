@@ -184,3 +184,23 @@ fn sampled_realism_repeats_with_its_seed_and_is_a_likelihood() {
         assert!(s.value > 0.0 && s.value <= 1.0 && s.ci >= 0.0, "{s:?}");
     }
 }
+
+#[test]
+fn every_shipped_model_loads_with_its_method_and_card() {
+    let models = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models");
+    let expected = [
+        ("bc", "BC"),
+        ("il", "IL"),
+        ("rl", "RL"),
+        ("rl_shaped", "RL-Shaped"),
+        ("bc_rl", "BC+RL"),
+        ("rtr", "RTR"),
+    ];
+    for (folder, method) in expected {
+        let dir = models.join(folder);
+        let policy = rtr::eval::TrainedPolicy::load(&dir, &cpu()).expect("loads");
+        assert_eq!(policy.method, method);
+        let card = std::fs::read_to_string(dir.join("CARD.md")).expect("card");
+        assert!(card.contains(&format!("experiments/main/small/{folder}.toml")));
+    }
+}
