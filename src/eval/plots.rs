@@ -40,6 +40,20 @@ const PROPOSED: &str = "RTR";
 /// The hand-written reference driver: drawn, but not a learned baseline of the frontier.
 const REFERENCE: &str = "IDM";
 
+/// A row or scene name as one file-name part: lower case, letters, digits, `-` and `.` kept,
+/// every other run of characters one `_` (so `RL (small/rl)` cannot name a folder).
+pub fn file_stem(name: &str) -> String {
+    let mut out = String::new();
+    for c in name.to_lowercase().chars() {
+        if c.is_ascii_alphanumeric() || c == '-' || c == '.' {
+            out.push(c);
+        } else if !out.ends_with('_') {
+            out.push('_');
+        }
+    }
+    out.trim_matches('_').to_string()
+}
+
 /// Points (x = nominal `realism`, y = long-tail collision %) of the methods that have both.
 fn pareto_points(methods: &[MethodResult], realism: Metric) -> Vec<(String, f64, f64)> {
     methods
@@ -151,7 +165,7 @@ pub fn histograms(dir: &Path, method: &MethodResult) -> Result<Option<PathBuf>> 
     let Some(nominal) = method.set(EvalSet::Nominal) else {
         return Ok(None);
     };
-    let name = method.method.to_lowercase().replace(['+', ' '], "_");
+    let name = file_stem(&method.method);
     let path = dir.join(format!("histograms_{name}.svg"));
     atomic_write_with(&path, |tmp| {
         draw_histograms(tmp, method, nominal).map_err(|e| plot_error(&path, e))
@@ -331,13 +345,10 @@ pub fn rollout_pictures(
         focus,
         ..RenderOptions::default()
     };
-    let id = log.id.replace(['/', ' ', ':'], "_");
+    let id = file_stem(&log.id);
     let mut written = Vec::new();
-    let named = std::iter::once(("log".to_string(), log)).chain(
-        rollouts
-            .iter()
-            .map(|(m, s)| (m.to_lowercase().replace(['+', ' '], "_"), s)),
-    );
+    let named = std::iter::once(("log".to_string(), log))
+        .chain(rollouts.iter().map(|(m, s)| (file_stem(m), s)));
     for (name, scene) in named {
         let path = dir.join(format!("rollout_{id}_{name}.png"));
         render_scene(scene, &path, &options)?;
@@ -349,6 +360,14 @@ pub fn rollout_pictures(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn file_stems_never_name_folders() {
+        assert_eq!(file_stem("RL (small/scene_level)"), "rl_small_scene_level");
+        assert_eq!(file_stem("BC+RL"), "bc_rl");
+        assert_eq!(file_stem("a9-test-t0436.0"), "a9-test-t0436.0");
+        assert_eq!(file_stem("lambda=5 alpha=0.3"), "lambda_5_alpha_0.3");
+    }
 
     #[test]
     fn frontier_keeps_the_non_dominated_staircase() {
