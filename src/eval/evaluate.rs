@@ -9,26 +9,20 @@
 
 use std::collections::BTreeMap;
 
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
-use rand_distr::{Distribution, StandardNormal};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::bootstrap::Additive;
-use super::bootstrap::{Estimate, estimate, resampled_totals, total};
+use super::bootstrap::{Additive, Estimate, estimate, resampled_totals, total};
 use super::metrics::{Metric, SceneTally};
 use super::plots::simulated_scene;
+use super::policy::EvalPolicy;
 use super::realism::{RealismTally, agent_tally};
 use super::sets::{EvalScenes, EvalSet};
-use super::tally::tally_rollout;
-use super::tally::{logged_features, simulated_features};
-use crate::driver::{IdmDriver, IdmParams};
+use super::tally::{logged_features, simulated_features, tally_rollout};
 use crate::error::Result;
-use crate::model::{ActionMode, NetworkPolicy, PolicyNetwork};
 use crate::scenario::hero_scripts;
 use crate::scene::{Scene, SceneBatch};
-use crate::sim::{ActionLimits, Dynamics, MapCaches, Policy, RolloutConfig, Scripted, rollout};
+use crate::sim::{Dynamics, MapCaches, RolloutConfig, Scripted, rollout};
 
 /// How a set is evaluated.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -54,75 +48,6 @@ impl Default for EvalConfig {
             seed: 2023,
             realism_samples: 8,
         }
-    }
-}
-
-/// Something that drives the controlled agents of a batch: a trained network or a baseline.
-pub trait EvalPolicy: Sync {
-    /// The deterministic policy (`noise = None`: the mean action), or one that samples its
-    /// actions with host noise seeded by `noise` (deterministic policies ignore it).
-    fn policy<'a>(
-        &'a self,
-        scenes: &[&Scene],
-        batch: &SceneBatch,
-        noise: Option<u64>,
-    ) -> Box<dyn Policy + 'a>;
-}
-
-impl EvalPolicy for PolicyNetwork {
-    fn policy<'a>(
-        &'a self,
-        _: &[&Scene],
-        batch: &SceneBatch,
-        noise: Option<u64>,
-    ) -> Box<dyn Policy + 'a> {
-        let mean = NetworkPolicy::new(self, batch, ActionMode::Mean);
-        match noise {
-            None => Box::new(mean),
-            Some(seed) => Box::new(SampledPolicy {
-                network: mean,
-                rng: ChaCha8Rng::seed_from_u64(seed),
-            }),
-        }
-    }
-}
-
-/// A network policy sampling mean + sigma * eps with eps from a seeded host generator, so
-/// sampled evaluations repeat exactly however batches run in parallel.
-struct SampledPolicy<'n> {
-    network: NetworkPolicy<'n>,
-    rng: ChaCha8Rng,
-}
-
-impl Policy for SampledPolicy<'_> {
-    fn act(&mut self, obs: &crate::sim::Observation) -> crate::sim::Controls {
-        let d = self.network.distribution(obs);
-        let dims = d.mean.dims();
-        let eps: Vec<f32> = (0..dims.iter().product::<usize>())
-            .map(|_| StandardNormal.sample(&mut self.rng))
-            .collect();
-        let eps = burn::prelude::Tensor::<3>::from_data(
-            burn::tensor::TensorData::new(eps, dims),
-            &d.mean.device(),
-        );
-        crate::sim::Controls::from_stacked(d.mean + d.log_std.exp() * eps)
-    }
-}
-
-/// The IDM + pure-pursuit lane keeper (a hand-written reference, not a learned method).
-pub struct IdmBaseline {
-    pub params: IdmParams,
-    pub limits: ActionLimits,
-}
-
-impl EvalPolicy for IdmBaseline {
-    fn policy<'a>(
-        &'a self,
-        scenes: &[&Scene],
-        _: &SceneBatch,
-        _: Option<u64>,
-    ) -> Box<dyn Policy + 'a> {
-        Box::new(IdmDriver::new(scenes, self.params, self.limits))
     }
 }
 

@@ -4,7 +4,11 @@
 //!
 //! - [`histogram`], [`features`], [`reconstruction`]: the measurements;
 //! - [`metrics`]: per-scene tallies and the metrics on them; [`bootstrap`]: their intervals;
-//! - [`tally`]: a rollout to tallies; [`sets`], [`evaluate`]: scene sets and the evaluation.
+//! - [`realism`]: the WOSAC-style score;
+//! - [`tally`]: a rollout to tallies; [`sets`], [`policy`], [`evaluate`]: scene sets, what
+//!   drives them, the evaluation;
+//! - [`trained`]: loading a run's policy; [`report`], [`plots`]: tables, JSON, figures;
+//! - [`study`], [`sweep`]: several policies or a lambda x alpha grid end to end.
 
 pub mod bootstrap;
 pub mod evaluate;
@@ -12,6 +16,7 @@ pub mod features;
 pub mod histogram;
 pub mod metrics;
 pub mod plots;
+pub mod policy;
 pub mod realism;
 pub mod reconstruction;
 pub mod report;
@@ -22,12 +27,11 @@ pub mod tally;
 pub mod trained;
 
 pub use bootstrap::Estimate;
-pub use evaluate::{
-    EvalConfig, EvalPolicy, IdmBaseline, SetResult, evaluate, evaluate_tallies, summarise,
-};
+pub use evaluate::{EvalConfig, SetResult, evaluate, evaluate_tallies, summarise};
 pub use features::Feature;
 pub use histogram::{Histogram, jensen_shannon};
 pub use metrics::{Metric, SceneTally};
+pub use policy::{EvalPolicy, IdmBaseline};
 pub use report::{MethodResult, markdown_table, results_json};
 pub use sets::{EvalScenes, EvalSet, load_sets};
 pub use tally::tally_rollout;

@@ -5,9 +5,10 @@ use std::path::{Path, PathBuf};
 
 use indicatif::ProgressBar;
 
-use super::evaluate::{EvalConfig, EvalPolicy, IdmBaseline, evaluate, simulated_scenes};
+use super::evaluate::{EvalConfig, evaluate, simulated_scenes};
 use super::metrics::Metric;
 use super::plots;
+use super::policy::{EvalPolicy, IdmBaseline};
 use super::report::{MethodResult, markdown_table, results_json};
 use super::sets::{EvalScenes, EvalSet};
 use super::trained::TrainedPolicy;
