@@ -373,8 +373,8 @@ fn eval_prints_the_table_row_and_writes_the_documented_json() {
         .lines()
         .find(|l| l.starts_with("| IL |"))
         .expect("an IL row");
-    // Method + 9 nominal metrics.
-    assert_eq!(row.matches('|').count(), 11, "{row}");
+    // Method + 9 nominal metrics + the realism score.
+    assert_eq!(row.matches('|').count(), 12, "{row}");
     let json: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out_dir.join("results.json")).expect("results.json"))
             .expect("JSON");
@@ -394,6 +394,8 @@ fn eval_prints_the_table_row_and_writes_the_documented_json() {
         assert!(nominal[format!("{key}_ci")].is_number(), "{key}_ci");
     }
     assert_eq!(nominal["scenes"], 100);
+    let realism = nominal["realism"].as_f64().expect("realism");
+    assert!(realism > 0.0 && realism <= 1.0, "{realism}");
     for file in [
         "table.md",
         "figures/histograms_il.svg",
