@@ -7,6 +7,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::histogram::Histogram;
+use crate::driver::AgentView;
 use crate::map::Map;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
@@ -67,28 +68,16 @@ impl Feature {
     }
 }
 
-/// One vehicle at one step: box centre, heading, speed, box length and width.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct VehiclePose {
-    pub x: f64,
-    pub y: f64,
-    pub heading: f64,
-    pub speed: f64,
-    pub length: f64,
-    pub width: f64,
-}
-
-/// The gap from vehicle `me` to the nearest vehicle ahead of it in its lane, among the
-/// `present` ones: longitudinal distance in `me`'s frame minus both half-lengths.
-pub fn lead_gap(me: usize, vehicles: &[VehiclePose], present: &[bool]) -> Option<f64> {
+/// The gap from vehicle `me` to the nearest present vehicle ahead of it in its lane:
+/// longitudinal distance in `me`'s frame minus both half-lengths.
+pub fn lead_gap(me: usize, vehicles: &[AgentView]) -> Option<f64> {
     let m = &vehicles[me];
     let (sin, cos) = m.heading.sin_cos();
     vehicles
         .iter()
-        .zip(present)
         .enumerate()
-        .filter(|&(j, (_, &p))| p && j != me)
-        .filter_map(|(_, (o, _))| {
+        .filter(|&(j, o)| o.present && j != me)
+        .filter_map(|(_, o)| {
             let (dx, dy) = (o.x - m.x, o.y - m.y);
             let ahead = dx * cos + dy * sin;
             let side = -dx * sin + dy * cos;
@@ -99,7 +88,7 @@ pub fn lead_gap(me: usize, vehicles: &[VehiclePose], present: &[bool]) -> Option
 }
 
 /// Signed lateral deviation from the nearest lane centerline that runs the vehicle's way.
-pub fn lane_deviation(map: &Map, v: &VehiclePose) -> Option<f64> {
+pub fn lane_deviation(map: &Map, v: &AgentView) -> Option<f64> {
     map.lane_projection([v.x, v.y], v.heading)
         .map(|p| p.lateral)
 }
@@ -108,14 +97,15 @@ pub fn lane_deviation(map: &Map, v: &VehiclePose) -> Option<f64> {
 mod tests {
     use super::*;
 
-    fn car(x: f64, y: f64, heading: f64) -> VehiclePose {
-        VehiclePose {
+    fn car(x: f64, y: f64, heading: f64) -> AgentView {
+        AgentView {
             x,
             y,
             heading,
             speed: 20.0,
             length: 4.0,
             width: 2.0,
+            present: true,
         }
     }
 
@@ -128,15 +118,13 @@ mod tests {
             car(-10.0, 0.0, 0.0), // behind
             car(50.0, 0.0, 0.0),  // further ahead
         ];
-        let all = [true; 5];
-        assert_eq!(lead_gap(0, &cars, &all), Some(26.0));
+        assert_eq!(lead_gap(0, &cars), Some(26.0));
         // Absent vehicles are not leaders.
-        assert_eq!(
-            lead_gap(0, &cars, &[true, false, true, true, true]),
-            Some(46.0)
-        );
+        let mut without = cars;
+        without[1].present = false;
+        assert_eq!(lead_gap(0, &without), Some(46.0));
         // Nobody ahead of the front car.
-        assert_eq!(lead_gap(4, &cars, &all), None);
+        assert_eq!(lead_gap(4, &cars), None);
     }
 
     #[test]
@@ -144,12 +132,12 @@ mod tests {
         // Heading north: the car 20 m north is ahead, the one 20 m east is beside.
         let h = std::f64::consts::FRAC_PI_2;
         let cars = [car(0.0, 0.0, h), car(20.0, 0.0, h), car(0.3, 20.0, h)];
-        assert!((lead_gap(0, &cars, &[true; 3]).unwrap() - 16.0).abs() < 1e-9);
+        assert!((lead_gap(0, &cars).unwrap() - 16.0).abs() < 1e-9);
     }
 
     #[test]
     fn overlapping_vehicles_have_zero_gap() {
         let cars = [car(0.0, 0.0, 0.0), car(2.0, 0.0, 0.0)];
-        assert_eq!(lead_gap(0, &cars, &[true, true]), Some(0.0));
+        assert_eq!(lead_gap(0, &cars), Some(0.0));
     }
 }

@@ -5,10 +5,11 @@
 use burn::prelude::*;
 use burn::tensor::Bool;
 
-use super::features::{Feature, VehiclePose, lane_deviation, lead_gap};
+use super::features::{Feature, lane_deviation, lead_gap};
 use super::histogram::Histogram;
 use super::metrics::SceneTally;
 use super::reconstruction::{LoggedPath, displacement};
+use crate::driver::AgentView;
 use crate::error::{Error, Result};
 use crate::scene::{AgentRole, Scene};
 use crate::sim::Rollout;
@@ -55,18 +56,31 @@ impl HostRollout {
         (b * self.n + i) * (self.steps + 1) + t
     }
 
-    fn pose(&self, b: usize, i: usize, t: usize, scene: &Scene) -> VehiclePose {
+    /// Agent `i` of scene `b` at step `t` as simulated.
+    fn view(&self, b: usize, i: usize, t: usize, scene: &Scene) -> AgentView {
         let k = self.at(b, i, t) * 4;
         let p = &self.poses[k..k + 4];
         let agent = &scene.agents[i];
-        VehiclePose {
+        AgentView {
             x: p[0] as f64,
             y: p[1] as f64,
             heading: p[2] as f64,
             speed: p[3] as f64,
             length: agent.length,
             width: agent.width,
+            present: self.present[self.at(b, i, t)],
         }
+    }
+
+    /// Every agent of scene `b` at step `t` as simulated.
+    fn views(&self, b: usize, t: usize, scene: &Scene) -> Vec<AgentView> {
+        (0..self.agents(scene))
+            .map(|i| self.view(b, i, t, scene))
+            .collect()
+    }
+
+    fn agents(&self, scene: &Scene) -> usize {
+        scene.agents.len().min(self.n)
     }
 
     fn any_flag(&self, flags: &[bool], b: usize, i: usize) -> bool {
@@ -75,37 +89,40 @@ impl HostRollout {
     }
 }
 
-fn logged_pose(scene: &Scene, i: usize, step: usize) -> Option<VehiclePose> {
+/// Agent `i` of `scene` at `step` as logged (`present` = the log has it then).
+fn logged_view(scene: &Scene, i: usize, step: usize) -> AgentView {
     let agent = &scene.agents[i];
-    agent.valid.get(step).copied().unwrap_or(false).then(|| {
-        let s = agent.states[step];
-        VehiclePose {
-            x: s.x,
-            y: s.y,
-            heading: s.heading,
-            speed: s.speed,
-            length: agent.length,
-            width: agent.width,
-        }
-    })
+    let present = agent.valid.get(step).copied().unwrap_or(false);
+    let s = if present {
+        agent.states[step]
+    } else {
+        Default::default()
+    };
+    AgentView {
+        x: s.x,
+        y: s.y,
+        heading: s.heading,
+        speed: s.speed,
+        length: agent.length,
+        width: agent.width,
+        present,
+    }
 }
 
 /// The features ([`Feature::ALL`] order) of vehicle `i`: `all[i]` its pose now, `before` its
-/// pose one step earlier (for the acceleration), `all`/`present` everybody now (for the
-/// leader).
+/// pose one step earlier (for the acceleration), `all` everybody now (for the leader).
 pub fn features_of(
     scene: &Scene,
     i: usize,
-    before: Option<VehiclePose>,
-    all: &[VehiclePose],
-    present: &[bool],
+    before: Option<AgentView>,
+    all: &[AgentView],
 ) -> StepFeatures {
     let pose = &all[i];
     Feature::ALL.map(|f| match f {
         Feature::Acceleration => before.map(|b| (pose.speed - b.speed) / scene.dt),
         Feature::Speed => Some(pose.speed),
         Feature::LaneDeviation => lane_deviation(&scene.map, pose),
-        Feature::LeadDistance => lead_gap(i, all, present),
+        Feature::LeadDistance => lead_gap(i, all),
     })
 }
 
@@ -153,9 +170,8 @@ fn tally_scene(
     with_log: bool,
 ) -> SceneTally {
     let mut tally = SceneTally::default();
-    let agents = scene.agents.len().min(host.n);
     let now = scene.current_step();
-    let controlled: Vec<usize> = (0..agents)
+    let controlled: Vec<usize> = (0..host.agents(scene))
         .filter(|&i| scene.agents[i].role == AgentRole::Controlled)
         .collect();
     for &i in &controlled {
@@ -167,61 +183,41 @@ fn tally_scene(
         return tally;
     }
 
-    // Logged paths over the simulated window (from the current step on).
-    let last = (now + host.steps).min(scene.steps() - 1);
-    let paths: Vec<Option<LoggedPath>> = (0..agents)
-        .map(|i| {
-            let points: Vec<[f64; 2]> = (now..=last)
-                .filter_map(|s| logged_pose(scene, i, s).map(|p| [p.x, p.y]))
-                .collect();
-            let heading = logged_pose(scene, i, now).map_or(0.0, |p| p.heading);
-            LoggedPath::new(&points, heading)
-        })
-        .collect();
-
-    for t in 1..=host.steps {
-        let step = now + t;
-        let sim_all: Vec<VehiclePose> = (0..agents).map(|i| host.pose(b, i, t, scene)).collect();
-        let sim_present: Vec<bool> = (0..agents)
-            .map(|i| host.present[host.at(b, i, t)])
-            .collect();
-        let log_all: Vec<Option<VehiclePose>> =
-            (0..agents).map(|i| logged_pose(scene, i, step)).collect();
-        let log_present: Vec<bool> = log_all.iter().map(Option::is_some).collect();
-        let log_poses: Vec<VehiclePose> = log_all
-            .iter()
-            .zip(&sim_all)
-            .map(|(l, s)| l.unwrap_or(*s))
-            .collect();
-        for &i in &controlled {
-            let simulated = host.simulated[host.at(b, i, t)];
-            let logged = log_all[i];
-            if simulated {
-                let before =
-                    host.simulated[host.at(b, i, t - 1)].then(|| host.pose(b, i, t - 1, scene));
-                add_features(
-                    &mut tally.simulated,
-                    features_of(scene, i, before, &sim_all, &sim_present),
-                );
-            }
-            if logged.is_some() {
-                let before = logged_pose(scene, i, step - 1);
-                add_features(
-                    &mut tally.logged,
-                    features_of(scene, i, before, &log_poses, &log_present),
-                );
-            }
-            let (Some(l), true, Some(path), true) = (logged, simulated, &paths[i], t == fde_step)
-            else {
-                continue;
-            };
-            let s = &sim_all[i];
-            let (ate, cte) = path.errors([s.x, s.y], [l.x, l.y]);
-            tally.fde_sum += displacement([s.x, s.y], [l.x, l.y]);
-            tally.ate_sum += ate;
-            tally.cte_sum += cte;
-            tally.fde_agents += 1.0;
+    let simulated = scene_simulated_features(host, b, scene);
+    let logged = logged_features(scene, host.steps);
+    for &i in &controlled {
+        for f in simulated[i].iter().flatten() {
+            add_features(&mut tally.simulated, *f);
         }
+        for f in logged[i].iter().flatten() {
+            add_features(&mut tally.logged, *f);
+        }
+    }
+
+    // FDE and its split along / across the logged path (from the current step on).
+    let t = fde_step;
+    if t == 0 || t > host.steps {
+        return tally;
+    }
+    for &i in &controlled {
+        let (l, sim) = (logged_view(scene, i, now + t), host.view(b, i, t, scene));
+        if !(l.present && host.simulated[host.at(b, i, t)]) {
+            continue;
+        }
+        let last = (now + host.steps).min(scene.steps() - 1);
+        let points: Vec<[f64; 2]> = (now..=last)
+            .map(|s| logged_view(scene, i, s))
+            .filter(|v| v.present)
+            .map(|v| [v.x, v.y])
+            .collect();
+        let Some(path) = LoggedPath::new(&points, logged_view(scene, i, now).heading) else {
+            continue;
+        };
+        let (ate, cte) = path.errors([sim.x, sim.y], [l.x, l.y]);
+        tally.fde_sum += displacement([sim.x, sim.y], [l.x, l.y]);
+        tally.ate_sum += ate;
+        tally.cte_sum += cte;
+        tally.fde_agents += 1.0;
     }
     tally
 }
@@ -238,30 +234,24 @@ pub fn simulated_features(scenes: &[&Scene], out: &Rollout) -> Vec<AgentFeatureR
     scenes
         .iter()
         .enumerate()
-        .map(|(b, scene)| {
-            let agents = scene.agents.len().min(host.n);
-            let mut per_agent = vec![Vec::new(); agents];
-            for t in 1..=host.steps {
-                let all: Vec<VehiclePose> =
-                    (0..agents).map(|i| host.pose(b, i, t, scene)).collect();
-                let present: Vec<bool> = (0..agents)
-                    .map(|i| host.present[host.at(b, i, t)])
-                    .collect();
-                for (i, row) in per_agent.iter_mut().enumerate() {
-                    if scene.agents[i].role != AgentRole::Controlled {
-                        continue;
-                    }
-                    let f = host.simulated[host.at(b, i, t)].then(|| {
-                        let before = host.simulated[host.at(b, i, t - 1)]
-                            .then(|| host.pose(b, i, t - 1, scene));
-                        features_of(scene, i, before, &all, &present)
-                    });
-                    row.push(f);
-                }
-            }
-            per_agent
-        })
+        .map(|(b, scene)| scene_simulated_features(&host, b, scene))
         .collect()
+}
+
+fn scene_simulated_features(host: &HostRollout, b: usize, scene: &Scene) -> AgentFeatureRows {
+    let mut per_agent = vec![Vec::new(); host.agents(scene)];
+    for t in 1..=host.steps {
+        let all = host.views(b, t, scene);
+        for (i, row) in per_agent.iter_mut().enumerate() {
+            if scene.agents[i].role != AgentRole::Controlled {
+                continue;
+            }
+            let simulated = |t: usize| host.simulated[host.at(b, i, t)];
+            let before = simulated(t - 1).then(|| host.view(b, i, t - 1, scene));
+            row.push(simulated(t).then(|| features_of(scene, i, before, &all)));
+        }
+    }
+    per_agent
 }
 
 /// The logged counterpart of [`simulated_features`] for one scene over `steps` steps.
@@ -271,31 +261,13 @@ pub fn logged_features(scene: &Scene, steps: usize) -> AgentFeatureRows {
     let mut per_agent = vec![Vec::new(); agents];
     for t in 1..=steps {
         let step = now + t;
-        let log: Vec<Option<VehiclePose>> =
-            (0..agents).map(|i| logged_pose(scene, i, step)).collect();
-        let present: Vec<bool> = log.iter().map(Option::is_some).collect();
-        let poses: Vec<VehiclePose> = log
-            .iter()
-            .map(|p| {
-                p.unwrap_or(VehiclePose {
-                    x: f64::NAN,
-                    y: f64::NAN,
-                    heading: 0.0,
-                    speed: 0.0,
-                    length: 0.0,
-                    width: 0.0,
-                })
-            })
-            .collect();
+        let all: Vec<AgentView> = (0..agents).map(|i| logged_view(scene, i, step)).collect();
         for (i, row) in per_agent.iter_mut().enumerate() {
             if scene.agents[i].role != AgentRole::Controlled {
                 continue;
             }
-            row.push(
-                log[i].map(|_| {
-                    features_of(scene, i, logged_pose(scene, i, step - 1), &poses, &present)
-                }),
-            );
+            let before = Some(logged_view(scene, i, step - 1)).filter(|v| v.present);
+            row.push(all[i].present.then(|| features_of(scene, i, before, &all)));
         }
     }
     per_agent
