@@ -12,6 +12,7 @@ pub mod geometry;
 pub mod io;
 pub mod map;
 pub mod model;
+pub mod predict;
 pub mod render;
 pub mod scenario;
 pub mod scene;

@@ -427,3 +427,31 @@ fn eval_names_what_is_wrong_with_its_arguments() {
         "{err}"
     );
 }
+
+#[test]
+fn curate_and_downstream_name_what_is_wrong() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let list = dir.path().join("curated.txt");
+    let out = rtr(&[
+        "curate",
+        "--checkpoint",
+        dir.path().to_str().unwrap(),
+        "--out",
+        list.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("no policy.bpk"),
+        "{err}"
+    );
+    assert!(!list.exists(), "nothing written on error");
+    let out = rtr(&["downstream", "--idm", "--seeds", "0"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("--seeds"), "{err}");
+    let out = rtr(&["downstream", "--checkpoint", dir.path().to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("no policy.bpk"),
+        "{err}"
+    );
+}

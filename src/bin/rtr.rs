@@ -61,6 +61,13 @@ enum Command {
     /// The lambda x alpha study: train RTR at every point from one base run file, then
     /// evaluate each (paper table "Balancing realism and infraction avoidance").
     Sweep(SweepArgs),
+    /// The downstream study (paper section 4.2): each policy simulates the A9 training split,
+    /// a trajectory predictor is trained on each simulated dataset and scored on the real test
+    /// split (minFDE, minCTE over modes; mean +- std over seeds).
+    Downstream(DownstreamArgs),
+    /// List the nominal A9 training scenes a trained policy commits an infraction on (the
+    /// paper's "Curated" scenario set): a scene list for a run file's `data.curated`.
+    Curate(CurateArgs),
     /// Sim-to-real: locate where the simulator and vehicle recordings differ, name the physics
     /// the bicycle model left out, fit it and show held-out error before and after.
     Sim2real(Sim2RealArgs),
@@ -93,6 +100,48 @@ struct EvalArgs {
     /// Bootstrap resamples over scenes for the +- intervals.
     #[arg(long, default_value_t = 1000)]
     resamples: usize,
+    /// Scenes per tensor batch.
+    #[arg(long, default_value_t = 16)]
+    batch: usize,
+    #[arg(long, default_value_t = Backend::NdArray)]
+    backend: Backend,
+    #[command(flatten)]
+    data: DataArgs,
+}
+
+#[derive(Args)]
+struct DownstreamArgs {
+    /// A trained policy (run folder, models/<method>, checkpoint folder or policy.bpk).
+    /// Repeat for more rows.
+    #[arg(long = "checkpoint")]
+    checkpoints: Vec<PathBuf>,
+    /// Also generate data with the IDM + lane-keeping reference driver.
+    #[arg(long)]
+    idm: bool,
+    /// Synthetic datasets and predictors per method.
+    #[arg(long, default_value_t = 4)]
+    seeds: usize,
+    /// Predictor training epochs.
+    #[arg(long, default_value_t = rtr::predict::FitConfig::default().epochs)]
+    epochs: usize,
+    /// Write results.json and table.md here.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    #[arg(long, default_value_t = Backend::NdArray)]
+    backend: Backend,
+    #[command(flatten)]
+    data: DataArgs,
+}
+
+#[derive(Args)]
+struct CurateArgs {
+    /// The policy to mine failures of (the paper uses IL): a run folder, models/<method>, a
+    /// checkpoint folder or a policy.bpk.
+    #[arg(long)]
+    checkpoint: PathBuf,
+    /// The scene list to write (one scene id per line).
+    #[arg(long)]
+    out: PathBuf,
     /// Scenes per tensor batch.
     #[arg(long, default_value_t = 16)]
     batch: usize,
@@ -464,6 +513,8 @@ fn run(cli: Cli) -> Result<()> {
         Command::Train(args) => train(args),
         Command::Eval(args) => eval(args),
         Command::Sweep(args) => sweep(args),
+        Command::Curate(args) => curate(args),
+        Command::Downstream(args) => downstream(args),
         Command::Sim2real(args) => sim2real(args),
         Command::Recordings {
             command:
@@ -478,8 +529,8 @@ fn run(cli: Cli) -> Result<()> {
 }
 
 fn eval(args: EvalArgs) -> Result<()> {
-    use rtr::eval::study::{Entry, evaluate_entries, write_study};
-    use rtr::eval::{EvalConfig, EvalSet, TrainedPolicy, load_sets, markdown_table};
+    use rtr::eval::study::{evaluate_entries, load_entries, write_study};
+    use rtr::eval::{EvalConfig, EvalSet, load_sets, markdown_table};
     if args.checkpoints.is_empty() && !args.idm {
         return Err(Error::InvalidArgument(
             "nothing to evaluate: pass --checkpoint DIR (repeatable) and/or --idm".into(),
@@ -491,14 +542,7 @@ fn eval(args: EvalArgs) -> Result<()> {
         .map(|s| EvalSet::parse(s.trim()))
         .collect::<Result<Vec<_>>>()?;
     let device = args.backend.device(false)?;
-    let mut entries = args
-        .checkpoints
-        .iter()
-        .map(|c| TrainedPolicy::load(c, &device).map(|t| Entry::Trained(Box::new(t))))
-        .collect::<Result<Vec<_>>>()?;
-    if args.idm {
-        entries.push(Entry::idm());
-    }
+    let entries = load_entries(&args.checkpoints, args.idm, &device)?;
     let dataset = args.data.load()?;
     let scenes = load_sets(&dataset, args.scenarios.as_deref(), &sets)?;
     let config = EvalConfig {
@@ -519,6 +563,113 @@ fn eval(args: EvalArgs) -> Result<()> {
         let written = write_study(out, &entries, &results, &scenes, &device)?;
         println!("wrote {} files to {}", written.len(), out.display());
     }
+    Ok(())
+}
+
+fn downstream(args: DownstreamArgs) -> Result<()> {
+    use rtr::eval::downstream::{DownstreamConfig, downstream, downstream_table};
+    use rtr::eval::study::load_entries;
+    use rtr::eval::{EvalConfig, EvalScenes};
+    if args.seeds == 0 {
+        return Err(Error::InvalidArgument("--seeds must be at least 1".into()));
+    }
+    let entries = load_entries(&args.checkpoints, args.idm, &args.backend.device(false)?)?;
+    let dataset = args.data.load()?;
+    let split = dataset.scenes(&SceneConfig::default())?;
+    let (train, test) = (EvalScenes::real(split.train), EvalScenes::real(split.test));
+    let mut config = DownstreamConfig {
+        seeds: args.seeds,
+        ..DownstreamConfig::default()
+    };
+    config.fit.epochs = args.epochs;
+    let progress = indicatif::ProgressBar::new(0).with_style(
+        indicatif::ProgressStyle::with_template(
+            "downstream [{elapsed_precise}] {bar:30} {pos}/{len} {msg}",
+        )
+        .map_err(|e| Error::InvalidArgument(format!("progress template: {e}")))?,
+    );
+    let started = std::time::Instant::now();
+    let rows = downstream(
+        &entries,
+        &train,
+        &test,
+        &args.backend.device(true)?,
+        &config,
+        &EvalConfig::default(),
+        &progress,
+    )?;
+    progress.finish_and_clear();
+    let table = downstream_table(&rows);
+    print!("{table}");
+    if let Some(out) = &args.out {
+        let json = serde_json::json!({
+            "config": config,
+            "train_scenes": train.scenes.len(),
+            "test_scenes": test.scenes.len(),
+            "wall_time_s": started.elapsed().as_secs_f64(),
+            "rows": rows,
+        });
+        let text = serde_json::to_string_pretty(&json)
+            .map_err(|e| Error::InvalidArgument(format!("results.json: {e}")))?;
+        rtr::io::atomic_write(&out.join("results.json"), text.as_bytes())?;
+        rtr::io::atomic_write(&out.join("table.md"), table.as_bytes())?;
+        println!("wrote {}/results.json and table.md", out.display());
+    }
+    Ok(())
+}
+
+fn curate(args: CurateArgs) -> Result<()> {
+    use rtr::eval::curate::scene_outcomes;
+    use rtr::eval::{EvalConfig, TrainedPolicy};
+    let device = args.backend.device(false)?;
+    let trained = TrainedPolicy::load(&args.checkpoint, &device)?;
+    let dataset = args.data.load()?;
+    let scenes = dataset.scenes(&SceneConfig::default())?.train;
+    let config = EvalConfig {
+        batch: args.batch,
+        ..EvalConfig::default()
+    };
+    let outcomes = scene_outcomes(
+        &trained.network,
+        &trained.dynamics,
+        scenes,
+        &device,
+        &config,
+    )?;
+    let failed: Vec<_> = outcomes.iter().filter(|o| o.failed()).collect();
+    if failed.is_empty() {
+        return Err(Error::InvalidArgument(format!(
+            "{}: no infraction on any of the {} training scenes, so there is nothing to curate",
+            args.checkpoint.display(),
+            outcomes.len()
+        )));
+    }
+    let count = |f: fn(&rtr::eval::curate::SceneOutcome) -> usize| -> usize {
+        failed.iter().map(|o| f(o)).sum()
+    };
+    let header = format!(
+        "Curated scenes: the nominal A9 training scenes on which {} ({}) commits an\n\
+         infraction (collision or off-road, mean action, no early termination).\n\
+         {} of {} scenes; {} agents collided, {} went off-road.\n\
+         Written by: rtr curate --checkpoint {} --out {}",
+        trained.method,
+        trained.path.display(),
+        failed.len(),
+        outcomes.len(),
+        count(|o| o.collided),
+        count(|o| o.offroad),
+        args.checkpoint.display(),
+        args.out.display()
+    );
+    let ids: Vec<String> = failed.iter().map(|o| o.id.clone()).collect();
+    rtr::data::write_scene_list(&args.out, &header, &ids)?;
+    println!(
+        "{}: {} of {} training scenes failed; list written to {}",
+        trained.method,
+        failed.len(),
+        outcomes.len(),
+        args.out.display()
+    );
     Ok(())
 }
 
@@ -667,6 +818,7 @@ fn train(args: TrainArgs) -> Result<()> {
     }
     if let Some(dir) = &args.scenarios {
         config.data.longtail_dir = Some(dir.clone());
+        config.validate(&format!("{} with --scenarios", args.config.display()))?;
     }
     let out = args.out.clone().unwrap_or_else(|| {
         let stem = args

@@ -290,19 +290,46 @@ pub fn simulated_scenes(
         None,
     )?;
     let scenes: Vec<&Scene> = indices.iter().map(|&k| &set.scenes[k]).collect();
+    Ok(rollout_scenes(&scenes, &out))
+}
+
+/// Every scene of `set` as `policy` drives it (see [`simulated_scenes`]), in scene order: with
+/// its mean action, or with `noise = Some(seed)` sampled, each batch seeded from `seed` and
+/// its index (synthetic data for the downstream study).
+pub fn simulate_set(
+    policy: &dyn EvalPolicy,
+    dynamics: &Dynamics,
+    set: &EvalScenes,
+    device: &burn::prelude::Device,
+    config: &EvalConfig,
+    noise: Option<u64>,
+) -> Result<Vec<Scene>> {
+    per_scene(set, config, |caches, g, group| {
+        let seed = noise.map(|s| crate::train::trainer::stream_seed(s, g, 0));
+        let (_, out) = rollout_group(policy, dynamics, set, group, device, caches, seed)?;
+        let scenes: Vec<&Scene> = group.iter().map(|&k| &set.scenes[k]).collect();
+        Ok(rollout_scenes(&scenes, &out))
+    })
+}
+
+/// The rolled-out `scenes` with their controlled agents' futures replaced by the simulated
+/// ones.
+pub fn rollout_scenes(scenes: &[&Scene], out: &crate::sim::Rollout) -> Vec<Scene> {
     let [b, n, t1, _] = out.poses.dims();
     let poses: Vec<f32> = out
         .poses
+        .clone()
         .into_data()
         .convert::<f32>()
         .try_into_vec::<f32>()
         .unwrap_or_default();
     let present: Vec<bool> = out
         .present
+        .clone()
         .into_data()
         .try_into_vec::<bool>()
         .unwrap_or_default();
-    Ok((0..b)
+    (0..b)
         .map(|bi| {
             let agent = |i: usize| (bi * n + i) * t1;
             let p: Vec<Vec<[f64; 4]>> = (0..n)
@@ -324,7 +351,7 @@ pub fn simulated_scenes(
                 .collect();
             simulated_scene(scenes[bi], &p, &ok)
         })
-        .collect())
+        .collect()
 }
 
 #[cfg(test)]

@@ -71,20 +71,25 @@ impl Feature {
 /// The gap from vehicle `me` to the nearest present vehicle ahead of it in its lane:
 /// longitudinal distance in `me`'s frame minus both half-lengths.
 pub fn lead_gap(me: usize, vehicles: &[AgentView]) -> Option<f64> {
+    leader(me, vehicles).map(|(_, gap)| gap)
+}
+
+/// The vehicle [`lead_gap`] measures to: its index and the gap.
+pub fn leader(me: usize, vehicles: &[AgentView]) -> Option<(usize, f64)> {
     let m = &vehicles[me];
     let (sin, cos) = m.heading.sin_cos();
     vehicles
         .iter()
         .enumerate()
         .filter(|&(j, o)| o.present && j != me)
-        .filter_map(|(_, o)| {
+        .filter_map(|(j, o)| {
             let (dx, dy) = (o.x - m.x, o.y - m.y);
             let ahead = dx * cos + dy * sin;
             let side = -dx * sin + dy * cos;
             (ahead > 0.0 && ahead <= LEAD_RANGE_M && side.abs() <= LEAD_LATERAL_M)
-                .then(|| (ahead - 0.5 * (m.length + o.length)).max(0.0))
+                .then(|| (j, (ahead - 0.5 * (m.length + o.length)).max(0.0)))
         })
-        .min_by(f64::total_cmp)
+        .min_by(|a, b| a.1.total_cmp(&b.1))
 }
 
 /// Signed lateral deviation from the nearest lane centerline that runs the vehicle's way.

@@ -8,9 +8,13 @@
 //! - [`tally`]: a rollout to tallies; [`sets`], [`policy`], [`evaluate`]: scene sets, what
 //!   drives them, the evaluation;
 //! - [`trained`]: loading a run's policy; [`report`], [`plots`]: tables, JSON, figures;
-//! - [`study`], [`sweep`]: several policies or a lambda x alpha grid end to end.
+//! - [`study`], [`sweep`]: several policies or a lambda x alpha grid end to end;
+//! - [`curate`]: the training scenes a policy fails on (the "Curated" scenario set);
+//! - [`downstream`]: predictors trained on each policy's simulated data, scored on real data.
 
 pub mod bootstrap;
+pub mod curate;
+pub mod downstream;
 pub mod evaluate;
 pub mod features;
 pub mod histogram;

@@ -62,11 +62,17 @@ pub struct EvalScenes {
 impl EvalScenes {
     /// The A9 test split (the recording's last 20 %, never trained on).
     pub fn nominal(dataset: &A9Dataset) -> Result<Self> {
-        Ok(Self {
+        Ok(Self::real(dataset.scenes(&SceneConfig::default())?.test))
+    }
+
+    /// Real logged scenes as a nominal set (e.g. the training split, for curation and for the
+    /// downstream study's initial conditions).
+    pub fn real(scenes: Vec<Scene>) -> Self {
+        Self {
             set: EvalSet::Nominal,
-            scenes: dataset.scenes(&SceneConfig::default())?.test,
+            scenes,
             scenarios: Vec::new(),
-        })
+        }
     }
 
     pub fn generated(set: EvalSet, scenarios: Vec<ConcreteScenario>) -> Result<Self> {

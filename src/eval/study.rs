@@ -86,6 +86,39 @@ fn row_names(entries: &[(String, String)]) -> Vec<String> {
         .collect()
 }
 
+/// The entries of `checkpoints` (loaded onto the plain `device`), then with `idm` the IDM
+/// reference.
+pub fn load_entries(
+    checkpoints: &[PathBuf],
+    idm: bool,
+    device: &burn::prelude::Device,
+) -> Result<Vec<Entry>> {
+    let mut entries = checkpoints
+        .iter()
+        .map(|c| TrainedPolicy::load(c, device).map(|t| Entry::Trained(Box::new(t))))
+        .collect::<Result<Vec<_>>>()?;
+    if idm {
+        entries.push(Entry::idm());
+    }
+    Ok(entries)
+}
+
+/// Every entry as (row name ([`row_names`]), source, policy, simulator).
+pub(crate) fn named_parts(entries: &[Entry]) -> Vec<(String, String, &dyn EvalPolicy, &Dynamics)> {
+    let parts: Vec<_> = entries.iter().map(Entry::parts).collect();
+    let names = row_names(
+        &parts
+            .iter()
+            .map(|(m, p, _, _)| (m.clone(), p.clone()))
+            .collect::<Vec<_>>(),
+    );
+    parts
+        .into_iter()
+        .zip(names)
+        .map(|((_, source, policy, dynamics), name)| (name, source, policy, dynamics))
+        .collect()
+}
+
 /// Evaluates every entry on every set (in that order); `progress` counts entry x set.
 pub fn evaluate_entries(
     entries: &[Entry],
@@ -95,29 +128,21 @@ pub fn evaluate_entries(
     progress: &ProgressBar,
 ) -> Result<Vec<MethodResult>> {
     progress.set_length((entries.len() * sets.len()) as u64);
-    let parts: Vec<_> = entries.iter().map(Entry::parts).collect();
-    let names = row_names(
-        &parts
-            .iter()
-            .map(|(m, p, _, _)| (m.clone(), p.clone()))
-            .collect::<Vec<_>>(),
-    );
-    parts
-        .iter()
-        .zip(names)
-        .map(|((_, checkpoint, policy, dynamics), name)| {
+    named_parts(entries)
+        .into_iter()
+        .map(|(name, checkpoint, policy, dynamics)| {
             let results = sets
                 .iter()
                 .map(|set| {
                     progress.set_message(format!("{name} on {}", set.set.name()));
-                    let r = evaluate(*policy, dynamics, set, device, config);
+                    let r = evaluate(policy, dynamics, set, device, config);
                     progress.inc(1);
                     r
                 })
                 .collect::<Result<Vec<_>>>()?;
             Ok(MethodResult {
                 method: name,
-                checkpoint: checkpoint.clone(),
+                checkpoint,
                 sets: results,
             })
         })

@@ -90,7 +90,7 @@ impl HostRollout {
 }
 
 /// Agent `i` of `scene` at `step` as logged (`present` = the log has it then).
-fn logged_view(scene: &Scene, i: usize, step: usize) -> AgentView {
+pub(crate) fn logged_view(scene: &Scene, i: usize, step: usize) -> AgentView {
     let agent = &scene.agents[i];
     let present = agent.valid.get(step).copied().unwrap_or(false);
     let s = if present {

@@ -100,7 +100,8 @@ pub struct TrainConfig {
     /// (its loss is the RL loss).
     #[serde(default = "default_one")]
     pub lambda: f64,
-    /// Share of long-tail initial states (paper's alpha).
+    /// Share of long-tail initial states (paper's alpha); of curated ones where
+    /// `data.curated` is set.
     #[serde(default)]
     pub alpha: f64,
     #[serde(default)]
@@ -281,6 +282,12 @@ pub struct DataConfig {
     pub longtail_generate: usize,
     /// Use only the first this many long-tail training scenarios.
     pub longtail_limit: Option<usize>,
+    /// Curated scenes: a scene list (`rtr curate`: nominal training scenes an earlier policy
+    /// commits an infraction on), relative to the run file. When set, the alpha share of
+    /// initial states is drawn from these scenes instead of the long-tail set (the paper's
+    /// "Curated" and "Nom+Cur" scenario sets); being real logs, they also get the imitation
+    /// loss.
+    pub curated: Option<PathBuf>,
     /// Cap on rollout steps (long-tail scenarios run 10-14 s); `None` = each scene's horizon.
     pub max_rollout_steps: Option<usize>,
 }
@@ -292,6 +299,7 @@ impl Default for DataConfig {
             longtail_dir: None,
             longtail_generate: 333,
             longtail_limit: None,
+            curated: None,
             max_rollout_steps: None,
         }
     }
@@ -338,6 +346,11 @@ impl TrainConfig {
         {
             *dynamics = path.parent().unwrap_or(Path::new(".")).join(&*dynamics);
         }
+        if let Some(curated) = config.data.curated.as_mut()
+            && curated.is_relative()
+        {
+            *curated = path.parent().unwrap_or(Path::new(".")).join(&*curated);
+        }
         Ok(config)
     }
 
@@ -374,6 +387,12 @@ impl TrainConfig {
         let p = &self.ppo;
         if !unit(self.alpha) {
             return fail("alpha", "expected a share in [0, 1]");
+        }
+        if self.data.curated.is_some() && self.data.longtail_dir.is_some() {
+            return fail(
+                "data.curated",
+                "curated scenes replace the long-tail set as the alpha share; remove data.longtail_dir",
+            );
         }
         if !(self.lambda.is_finite() && self.lambda >= 0.0) {
             return fail("lambda", "expected a finite weight >= 0");

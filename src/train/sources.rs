@@ -4,10 +4,13 @@
 //! A draw of K initial states becomes [`Part`]s: scenes that can share one tensor batch (same
 //! kind, same window), since long-tail families run longer than the nominal 6 s window.
 
+use std::collections::HashMap;
+use std::path::Path;
+
 use rand::Rng;
 
 use super::config::DataConfig;
-use crate::data::{A9Dataset, SceneConfig, TrafficStatistics};
+use crate::data::{A9Dataset, SceneConfig, TrafficStatistics, read_scene_list};
 use crate::error::{Error, Result};
 use crate::scenario::{
     ConcreteScenario, GenerateConfig, ScenarioSet, builtin_families, generate_sets, load_families,
@@ -22,6 +25,9 @@ pub struct TrainingData {
     /// Long-tail training scenarios and their scenes (no logs of the policy's agents beyond the
     /// reference IDM run, so no imitation loss is taken on them).
     pub longtail: Vec<(ConcreteScenario, Scene)>,
+    /// Indices into `nominal` of the curated scenes (`data.curated`); when not empty they are
+    /// the alpha share instead of `longtail`.
+    pub curated: Vec<usize>,
 }
 
 /// One initial state: an index into [`TrainingData::nominal`] or [`TrainingData::longtail`].
@@ -61,6 +67,11 @@ impl TrainingData {
                 "data.nominal_limit leaves no nominal training scene".into(),
             ));
         }
+        let curated = match &config.curated {
+            Some(path) => curated_indices(&nominal, path)?,
+            None => Vec::new(),
+        };
+        let with_longtail = with_longtail && curated.is_empty();
         let mut scenarios = if !with_longtail {
             Vec::new()
         } else if let Some(dir) = &config.longtail_dir {
@@ -87,14 +98,21 @@ impl TrainingData {
             .into_iter()
             .map(|s| s.to_scene().map(|scene| (s, scene)))
             .collect::<Result<Vec<_>>>()?;
-        Ok(Self { nominal, longtail })
+        Ok(Self {
+            nominal,
+            longtail,
+            curated,
+        })
     }
 
-    /// `count` i.i.d. initial states: long-tail with probability `alpha`, each set uniform.
+    /// `count` i.i.d. initial states: from the alpha share (curated scenes if any, else the
+    /// long-tail set) with probability `alpha`, else nominal; each set uniform.
     pub fn sample(&self, rng: &mut impl Rng, count: usize, alpha: f64) -> Vec<InitialState> {
         (0..count)
             .map(|_| {
-                if !self.longtail.is_empty() && rng.random::<f64>() < alpha {
+                if !self.curated.is_empty() && rng.random::<f64>() < alpha {
+                    InitialState::Nominal(self.curated[rng.random_range(0..self.curated.len())])
+                } else if !self.longtail.is_empty() && rng.random::<f64>() < alpha {
                     InitialState::LongTail(rng.random_range(0..self.longtail.len()))
                 } else {
                     InitialState::Nominal(rng.random_range(0..self.nominal.len()))
@@ -148,4 +166,27 @@ impl TrainingData {
             .chain(longtail.into_iter().map(|(_, p)| p))
             .collect()
     }
+}
+
+/// The positions in `nominal` of the scenes listed in `path`; an id that is not a nominal
+/// training scene is an error naming it.
+fn curated_indices(nominal: &[Scene], path: &Path) -> Result<Vec<usize>> {
+    let position: HashMap<&str, usize> = nominal
+        .iter()
+        .enumerate()
+        .map(|(k, s)| (s.id.as_str(), k))
+        .collect();
+    read_scene_list(path)?
+        .iter()
+        .map(|id| {
+            position.get(id.as_str()).copied().ok_or_else(|| {
+                Error::invalid(
+                    path.display().to_string(),
+                    format!("scene `{id}`"),
+                    "not a nominal training scene (curated scenes come from the A9 training \
+                     split; is data.nominal_limit cutting it?)",
+                )
+            })
+        })
+        .collect()
 }

@@ -64,8 +64,17 @@ pub fn stream_seed(seed: u64, iteration: usize, stream: u64) -> u64 {
 /// Serialises seeding and initialisation through the devices' global RNG within a process.
 static DEVICE_RNG: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
+/// Runs `make` (which should initialise modules and [`Materialise`] them) with `device`'s
+/// global RNG seeded with `seed`, under a process lock, so parallel threads cannot interleave
+/// their draws.
+pub(crate) fn with_seeded_device<T>(device: &Device, seed: u64, make: impl FnOnce() -> T) -> T {
+    let _guard = DEVICE_RNG.lock().unwrap_or_else(|p| p.into_inner());
+    device.seed(seed);
+    make()
+}
+
 /// Touches every parameter, so lazily initialised ones draw their values now.
-struct Materialise;
+pub(crate) struct Materialise;
 
 impl burn::module::ModuleVisitor for Materialise {
     fn visit_float<const D: usize>(&mut self, param: &burn::module::Param<Tensor<D>>) {
@@ -252,15 +261,14 @@ impl<'d> Trainer<'d> {
                 // Initialisation draws from the device's global RNG, and burn initialises
                 // parameters lazily: seed, then force every value, under a lock, so runs in
                 // parallel threads (tests) cannot interleave their draws.
-                let (policy, value) = {
-                    let _guard = DEVICE_RNG.lock().unwrap_or_else(|p| p.into_inner());
-                    main.seed(stream_seed(config.seed, 0, u64::MAX));
-                    let policy = PolicyNetwork::new(&config.model, &main);
-                    let value = ValueNetwork::new(&config.model, &main);
-                    policy.visit(&mut Materialise);
-                    value.visit(&mut Materialise);
-                    (policy, value)
-                };
+                let (policy, value) =
+                    with_seeded_device(&main, stream_seed(config.seed, 0, u64::MAX), || {
+                        let policy = PolicyNetwork::new(&config.model, &main);
+                        let value = ValueNetwork::new(&config.model, &main);
+                        policy.visit(&mut Materialise);
+                        value.visit(&mut Materialise);
+                        (policy, value)
+                    });
                 (
                     policy,
                     value,
