@@ -285,11 +285,15 @@ fn idm_collision_pct(
         None => rollout(scenes, &batch, &dynamics, &mut idm, &mut caches, &config).unwrap(),
     };
     let [b, n, t] = result.collision.dims();
-    let flags = result.collision.to_data().try_into_vec::<bool>().unwrap();
+    let flags = result
+        .collision
+        .to_data()
+        .try_into_vec_as::<bool>()
+        .unwrap();
     let mut controlled = batch
         .agent_controlled
         .to_data()
-        .try_into_vec::<bool>()
+        .try_into_vec_as::<bool>()
         .unwrap();
     if targets_only {
         for (i, c) in controlled.iter_mut().enumerate() {

@@ -28,7 +28,7 @@ fn values(t: Tensor<3>) -> Vec<f64> {
 }
 
 fn flags(t: &Tensor<3, burn::tensor::Bool>) -> Vec<bool> {
-    t.to_data().try_into_vec::<bool>().expect("bools")
+    t.to_data().try_into_vec_as::<bool>().expect("bools")
 }
 
 #[test]

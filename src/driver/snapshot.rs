@@ -57,7 +57,7 @@ impl Snapshot {
         let present: Vec<bool> = frame
             .present
             .to_data()
-            .try_into_vec::<bool>()
+            .try_into_vec_as::<bool>()
             .unwrap_or_default();
         let agents = (0..b * n)
             .map(|i| AgentView {

@@ -327,7 +327,7 @@ pub fn rollout_scenes(scenes: &[&Scene], out: &crate::sim::Rollout) -> Vec<Scene
         .present
         .clone()
         .into_data()
-        .try_into_vec::<bool>()
+        .try_into_vec_as::<bool>()
         .unwrap_or_default();
     (0..b)
         .map(|bi| {

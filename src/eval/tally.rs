@@ -35,7 +35,7 @@ fn floats<const D: usize>(t: Tensor<D>) -> Vec<f32> {
 }
 
 fn bools<const D: usize>(t: Tensor<D, Bool>) -> Vec<bool> {
-    t.into_data().try_into_vec::<bool>().unwrap_or_default()
+    t.into_data().try_into_vec_as::<bool>().unwrap_or_default()
 }
 
 impl HostRollout {

@@ -458,7 +458,7 @@ pub fn scene_with_reference_future(scenario: &ConcreteScenario) -> Result<Scene>
     let present = result
         .present
         .to_data()
-        .try_into_vec::<bool>()
+        .try_into_vec_as::<bool>()
         .unwrap_or_default();
     let t1 = result.steps + 1;
     let now = scene.current_step();
@@ -505,7 +505,7 @@ pub fn reference_run(scenario: &ConcreteScenario) -> std::result::Result<Referen
         .present
         .clone()
         .to_data()
-        .try_into_vec::<bool>()
+        .try_into_vec_as::<bool>()
         .unwrap_or_default();
     let t1 = result.steps + 1;
     for hero in &scenario.heroes {
@@ -528,7 +528,10 @@ pub fn reference_run(scenario: &ConcreteScenario) -> std::result::Result<Referen
     }
     let any = |flags: Tensor<3, burn::tensor::Bool>| -> Vec<usize> {
         let [_, n, t] = flags.dims();
-        let v = flags.to_data().try_into_vec::<bool>().unwrap_or_default();
+        let v = flags
+            .to_data()
+            .try_into_vec_as::<bool>()
+            .unwrap_or_default();
         (0..n)
             .filter(|i| v[i * t..(i + 1) * t].iter().any(|&f| f))
             .collect()

@@ -106,8 +106,9 @@ pub fn replay_logs(
         .convert::<f64>()
         .try_into_vec()
         .unwrap_or_default();
-    let flags =
-        |t: &Tensor<3, burn::tensor::Bool>| t.to_data().try_into_vec::<bool>().unwrap_or_default();
+    let flags = |t: &Tensor<3, burn::tensor::Bool>| {
+        t.to_data().try_into_vec_as::<bool>().unwrap_or_default()
+    };
     let (collision, offroad) = (flags(&out.collision), flags(&out.offroad));
     let steps = out.steps;
     let mut report = ReplayReport {

@@ -137,7 +137,7 @@ fn to_f32(t: &Tensor<2>) -> Vec<f32> {
 }
 
 fn to_bool(t: &Tensor<2, Bool>) -> Vec<bool> {
-    t.to_data().try_into_vec::<bool>().unwrap_or_default()
+    t.to_data().try_into_vec_as::<bool>().unwrap_or_default()
 }
 
 /// The logged frames of `batch` from its first step through `step`: what a policy sees before
@@ -222,7 +222,7 @@ pub fn rollout_from(
     let log_valid: Vec<bool> = batch
         .agent_valid
         .to_data()
-        .try_into_vec::<bool>()
+        .try_into_vec_as::<bool>()
         .unwrap_or_default();
 
     let logged_state = |t: usize| {

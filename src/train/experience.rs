@@ -220,7 +220,7 @@ fn host_f32<const D: usize>(t: Tensor<D>) -> Vec<f32> {
 }
 
 fn host_bool<const D: usize>(t: Tensor<D, Bool>) -> Vec<bool> {
-    t.into_data().try_into_vec::<bool>().unwrap_or_default()
+    t.into_data().try_into_vec_as::<bool>().unwrap_or_default()
 }
 
 /// Which agent-steps are alive: `simulated` `[B*N, T+1]` (controlled and on the road) cut after
