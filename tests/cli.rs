@@ -448,6 +448,9 @@ fn curate_and_downstream_name_what_is_wrong() {
     let out = rtr(&["downstream", "--idm", "--seeds", "0"]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("--seeds"), "{err}");
+    let out = rtr(&["downstream", "--idm", "--epochs", "0"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("--epochs"), "{err}");
     let out = rtr(&["downstream", "--checkpoint", dir.path().to_str().unwrap()]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(

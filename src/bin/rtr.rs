@@ -570,8 +570,10 @@ fn downstream(args: DownstreamArgs) -> Result<()> {
     use rtr::eval::downstream::{DownstreamConfig, downstream, downstream_table};
     use rtr::eval::study::load_entries;
     use rtr::eval::{EvalConfig, EvalScenes};
-    if args.seeds == 0 {
-        return Err(Error::InvalidArgument("--seeds must be at least 1".into()));
+    if args.seeds == 0 || args.epochs == 0 {
+        return Err(Error::InvalidArgument(
+            "--seeds and --epochs must be at least 1".into(),
+        ));
     }
     let entries = load_entries(&args.checkpoints, args.idm, &args.backend.device(false)?)?;
     let dataset = args.data.load()?;
