@@ -391,7 +391,8 @@ impl TrainConfig {
         if self.data.curated.is_some() && self.data.longtail_dir.is_some() {
             return fail(
                 "data.curated",
-                "curated scenes replace the long-tail set as the alpha share; remove data.longtail_dir",
+                "curated scenes replace the long-tail set as the alpha share; drop data.longtail_dir \
+                 (or the --scenarios flag)",
             );
         }
         if !(self.lambda.is_finite() && self.lambda >= 0.0) {
