@@ -21,5 +21,6 @@ pub mod sim2real;
 #[cfg(test)]
 mod test_rng;
 pub mod train;
+pub mod usage;
 
 pub use error::{Error, Result};

@@ -41,8 +41,8 @@ fn outputs(policy: &PolicyNetwork, value: &ValueNetwork, batch: &SceneBatch) -> 
     let lanes = LaneInput::from_batch(batch, config);
     let frames = logged_frames(batch, batch.history_steps);
     let agents = AgentInput::from_frames(batch, &frames, config);
-    let dist = policy.forward(&agents, &lanes, policy.encode_lanes(&lanes));
-    let v = value.forward(&agents, &lanes, value.encode_lanes(&lanes));
+    let dist = policy.forward(&agents, &lanes, &policy.encode_lanes(&lanes));
+    let v = value.forward(&agents, &lanes, &value.encode_lanes(&lanes));
     Outputs {
         mean: values(dist.mean),
         log_std: values(dist.log_std),
@@ -272,8 +272,8 @@ fn padding_changes_nothing_and_padded_agents_get_no_gradient() {
     let lanes = LaneInput::from_batch(&batch, config);
     let frames = logged_frames(&batch, batch.history_steps);
     let agents = AgentInput::from_frames(&batch, &frames, config);
-    let dist = policy.forward(&agents, &lanes, policy.encode_lanes(&lanes));
-    let v = value.forward(&agents, &lanes, value.encode_lanes(&lanes));
+    let dist = policy.forward(&agents, &lanes, &policy.encode_lanes(&lanes));
+    let v = value.forward(&agents, &lanes, &value.encode_lanes(&lanes));
     let grads = (dist.mean.sum() + dist.log_std.sum() + v.sum()).backward();
     let grad = values(states.grad(&grads).expect("states reach the outputs"));
     let row = |agent: usize| &grad[(a + agent) * t * f..(a + agent + 1) * t * f];
@@ -349,7 +349,7 @@ fn gradients_reach_every_parameter_through_a_closed_loop_rollout() {
     let lanes = LaneInput::from_batch(&batch, config);
     let frames = logged_frames(&batch, batch.history_steps);
     let agents = AgentInput::from_frames(&batch, &frames, config);
-    let v = value.forward(&agents, &lanes, value.encode_lanes(&lanes));
+    let v = value.forward(&agents, &lanes, &value.encode_lanes(&lanes));
     let grads = v.powi_scalar(2).sum().backward();
     let mut check = GradientCheck {
         grads: &grads,

@@ -304,14 +304,16 @@ fn two_devices_compute_the_one_device_loss_and_gradient() {
     let one = tempfile::tempdir().expect("temp dir");
     let two = tempfile::tempdir().expect("temp dir");
     let config = tiny("RTR", "alpha = 0.5", "[run]\nmax_iterations = 1");
-    let single = train(config.clone(), one.path(), false, None);
+    let mut alone = config.clone();
+    alone.run.devices = Some(1);
+    let single = train(alone, one.path(), false, None);
     let mut split = config.clone();
-    split.run.devices = 2;
+    split.run.devices = Some(2);
     let double = train(split, two.path(), false, None);
     // More devices than scenes: the idle ones are left out, the step is the same.
     let many = tempfile::tempdir().expect("temp dir");
     let mut wide = config;
-    wide.run.devices = 5;
+    wide.run.devices = Some(5);
     let spread = train(wide, many.path(), false, None);
     let close = |a: f64, b: f64| (a - b).abs() <= 1e-4 * a.abs().max(b.abs()).max(1e-6);
     let (a, b) = (&single[0], &double[0]);

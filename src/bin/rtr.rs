@@ -319,6 +319,12 @@ struct TrainBenchArgs {
     ppo_batch: usize,
     #[arg(long, default_value_t = 32)]
     ppo_minibatch: usize,
+    /// Worker devices (data parallel); default one per core (one on wgpu).
+    #[arg(long)]
+    devices: Option<usize>,
+    /// Print one JSON object (the only output format; accepted for symmetry).
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(Args)]
@@ -331,6 +337,10 @@ struct BenchArgs {
     /// Timed repetitions per measurement (the median is reported).
     #[arg(long, default_value_t = 5)]
     repetitions: usize,
+    /// Worker devices the model benchmark splits its batch over; default one per core (one on
+    /// wgpu). The simulator benchmark has no network and ignores it.
+    #[arg(long)]
+    devices: Option<usize>,
     /// Print one JSON object (the only output format; the flag is accepted for symmetry with
     /// other commands).
     #[arg(long)]
@@ -972,6 +982,7 @@ fn bench(command: BenchCommand) -> Result<()> {
                 args.il_minibatch,
                 args.ppo_batch,
                 args.ppo_minibatch,
+                device_count(args.devices, args.backend)?,
             )?)
         }
         BenchCommand::Sim(args) => {
@@ -980,12 +991,29 @@ fn bench(command: BenchCommand) -> Result<()> {
         }
         BenchCommand::Model(args) => {
             let (map, repetitions) = bench_inputs(&args)?;
-            serde_json::to_value(rtr::model::bench::run(map, args.backend, repetitions)?)
+            let devices = device_count(args.devices, args.backend)?;
+            serde_json::to_value(rtr::model::bench::run(
+                map,
+                args.backend,
+                devices,
+                repetitions,
+            )?)
         }
     }
     .map_err(|e| Error::InvalidArgument(format!("cannot encode report: {e}")))?;
     println!("{report}");
     Ok(())
+}
+
+/// `--devices` checked, or the backend's default worker count.
+fn device_count(devices: Option<usize>, backend: Backend) -> Result<usize> {
+    match devices {
+        Some(0) => Err(Error::InvalidArgument(
+            "--devices must be at least 1".into(),
+        )),
+        Some(n) => Ok(n),
+        None => Ok(rtr::train::shards::default_devices(backend)),
+    }
 }
 
 /// The A9 map and the checked repetition count of a simulator or model benchmark.

@@ -5,6 +5,9 @@
 //! - `forward_ms`: both networks' full forward (lane encoder included) on the plain device;
 //! - `forward_backward_ms`: the same on the autodiff device plus backward of a scalar of all
 //!   outputs;
+//! - both with the batch split over `devices` worker threads (each a contiguous share of the
+//!   scenes on its own device, as the trainer splits a minibatch), and on one device
+//!   (`*_one_device_ms`);
 //! - `peak_rss_mb`: the process's resident-memory high-water mark over the timed runs (Linux
 //!   `VmHWM`, reset before measuring; `null` elsewhere), `baseline_rss_mb` before them.
 
@@ -22,6 +25,7 @@ use crate::map::{LaneGraph, Map};
 use crate::scene::{Scene, SceneBatch};
 use crate::sim::bench::{median_seconds, synthetic_scene};
 use crate::sim::logged_frames;
+use crate::usage::{CoreMeter, peak_rss_mb, reset_peak_rss};
 
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct ModelBench {
@@ -34,27 +38,105 @@ pub struct ModelBench {
     pub policy_params: usize,
     pub value_params: usize,
     pub params: usize,
+    /// Worker devices the batch is split over (data parallel, as training runs it).
+    pub devices: usize,
     pub forward_ms: f64,
     pub forward_backward_ms: f64,
+    /// The same two on one device (one worker), for the speed-up of the split.
+    pub forward_one_device_ms: f64,
+    pub forward_backward_one_device_ms: f64,
+    /// Cores kept busy (CPU time / wall time) during the timed forward + backward runs.
+    pub cores_busy: Option<f64>,
     pub baseline_rss_mb: Option<f64>,
     pub peak_rss_mb: Option<f64>,
     pub repetitions: usize,
 }
 
-/// Resident-set high-water mark of this process (MiB), from `/proc/self/status`.
-fn peak_rss_mb() -> Option<f64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
-    let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kib / 1024.0)
+/// One worker's share: its batch, frames and network copies, built outside the timing.
+struct Shard {
+    batch: SceneBatch,
+    frames: Vec<crate::sim::Frame>,
+    policy: PolicyNetwork,
+    value: ValueNetwork,
 }
 
-/// Resets the high-water mark to the current resident size (Linux >= 4.0).
-fn reset_peak_rss() {
-    let _ = std::fs::write("/proc/self/clear_refs", "5");
+impl Shard {
+    fn new(
+        scenes: &[&Scene],
+        policy: &PolicyNetwork,
+        value: &ValueNetwork,
+        device: &Device,
+    ) -> Result<Self> {
+        let batch = SceneBatch::from_scenes(scenes, device)?;
+        let frames = logged_frames(&batch, batch.history_steps);
+        Ok(Self {
+            batch,
+            frames,
+            policy: policy.clone().fork(device),
+            value: value.clone().fork(device),
+        })
+    }
+
+    /// Both networks' full forward (lane encoder included), then backward when `backward`.
+    fn run(&self, backward: bool) {
+        let config = self.policy.config();
+        let lanes = LaneInput::from_batch(&self.batch, config);
+        let agents = AgentInput::from_frames(&self.batch, &self.frames, config);
+        let dist = self
+            .policy
+            .forward(&agents, &lanes, &self.policy.encode_lanes(&lanes));
+        let v = self
+            .value
+            .forward(&agents, &lanes, &self.value.encode_lanes(&lanes));
+        let total = dist.mean.sum() + dist.log_std.sum() + v.sum();
+        if backward {
+            let _grads = total.backward();
+        } else {
+            // Wait for the result (asynchronous backends).
+            let _ = total.into_data();
+        }
+    }
 }
 
-pub fn run(map: Arc<Map>, backend: Backend, repetitions: usize) -> Result<ModelBench> {
+/// The batch cut into `devices` contiguous shards, each on its own device.
+fn shards(
+    scenes: &[&Scene],
+    devices: usize,
+    backend: Backend,
+    autodiff: bool,
+    config: &ModelConfig,
+) -> Result<Vec<Shard>> {
+    let main = backend.device(autodiff)?;
+    let policy = PolicyNetwork::new(config, &main);
+    let value = ValueNetwork::new(config, &main);
+    scenes
+        .chunks(scenes.len().div_ceil(devices.max(1)))
+        .map(|chunk| Shard::new(chunk, &policy, &value, &backend.device(autodiff)?))
+        .collect()
+}
+
+/// Times every shard's run, in parallel on scoped threads when there are several.
+fn timed(repetitions: usize, shards: &[Shard], backward: bool) -> Result<f64> {
+    median_seconds(repetitions, &mut || {
+        if let [only] = shards {
+            only.run(backward);
+        } else {
+            std::thread::scope(|scope| {
+                for shard in shards {
+                    scope.spawn(move || shard.run(backward));
+                }
+            });
+        }
+        Ok(())
+    })
+}
+
+pub fn run(
+    map: Arc<Map>,
+    backend: Backend,
+    devices: usize,
+    repetitions: usize,
+) -> Result<ModelBench> {
     let graph = Arc::new(LaneGraph::build(&map, 10.0));
     let config = ModelConfig::default();
     let (b, n) = (32, 32);
@@ -64,40 +146,22 @@ pub fn run(map: Arc<Map>, backend: Backend, repetitions: usize) -> Result<ModelB
         .collect();
     let refs: Vec<&Scene> = scenes.iter().collect();
 
-    // One timed closure per device: inputs and networks are built outside the timing.
-    let forward = |device: &Device, backward: bool| -> Result<Box<dyn FnMut() -> Result<()>>> {
-        let config = config.clone();
-        let batch = SceneBatch::from_scenes(&refs, device)?;
-        let frames = logged_frames(&batch, batch.history_steps);
-        let policy = PolicyNetwork::new(&config, device);
-        let value = ValueNetwork::new(&config, device);
-        Ok(Box::new(move || {
-            let lanes = LaneInput::from_batch(&batch, &config);
-            let agents = AgentInput::from_frames(&batch, &frames, &config);
-            let dist = policy.forward(&agents, &lanes, policy.encode_lanes(&lanes));
-            let v = value.forward(&agents, &lanes, value.encode_lanes(&lanes));
-            let total = dist.mean.sum() + dist.log_std.sum() + v.sum();
-            if backward {
-                let _grads = total.backward();
-            } else {
-                // Wait for the result (asynchronous backends).
-                let _ = total.into_data();
-            }
-            Ok(())
-        }))
-    };
-
     let device = backend.device(false)?;
-    let probe = PolicyNetwork::new(&config, &device);
-    let policy_params = probe.num_params();
+    let policy_params = PolicyNetwork::new(&config, &device).num_params();
     let value_params = ValueNetwork::new(&config, &device).num_params();
-    drop(probe);
 
     let baseline_rss_mb = peak_rss_mb();
     reset_peak_rss();
-    let forward_s = median_seconds(repetitions, &mut *forward(&device, false)?)?;
-    let forward_backward_s =
-        median_seconds(repetitions, &mut *forward(&backend.device(true)?, true)?)?;
+    let measure = |workers: usize, autodiff: bool| -> Result<f64> {
+        let shards = shards(&refs, workers, backend, autodiff, &config)?;
+        timed(repetitions, &shards, autodiff)
+    };
+    let forward_one_device_s = measure(1, false)?;
+    let forward_backward_one_device_s = measure(1, true)?;
+    let forward_s = measure(devices, false)?;
+    let meter = CoreMeter::start();
+    let forward_backward_s = measure(devices, true)?;
+    let cores_busy = meter.cores_busy();
     Ok(ModelBench {
         bench: "model",
         backend: backend.to_string(),
@@ -108,8 +172,12 @@ pub fn run(map: Arc<Map>, backend: Backend, repetitions: usize) -> Result<ModelB
         policy_params,
         value_params,
         params: policy_params + value_params,
+        devices,
         forward_ms: 1e3 * forward_s,
         forward_backward_ms: 1e3 * forward_backward_s,
+        forward_one_device_ms: 1e3 * forward_one_device_s,
+        forward_backward_one_device_ms: 1e3 * forward_backward_one_device_s,
+        cores_busy,
         baseline_rss_mb,
         peak_rss_mb: peak_rss_mb(),
         repetitions: repetitions.max(1),

@@ -176,13 +176,22 @@ struct LaneRound {
 }
 
 impl AgentRound {
-    fn forward(&self, agents: Tensor<3>, lanes: Tensor<3>, edges: &InteractionEdges) -> Tensor<3> {
+    /// `projected_lanes`: the lane features already through `from_lanes`' sender projection
+    /// (the first round's, cached per rollout), else projected here.
+    fn forward(
+        &self,
+        agents: Tensor<3>,
+        lanes: Tensor<3>,
+        edges: &InteractionEdges,
+        projected_lanes: Option<Tensor<3>>,
+    ) -> Tensor<3> {
+        let projected = projected_lanes.unwrap_or_else(|| self.from_lanes.project(lanes));
         let messages = self.from_agents.aggregate_dense(
             agents.clone(),
             edges.agent_agent_pose.clone(),
             edges.agent_agent_mask.clone(),
-        ) + self.from_lanes.aggregate(
-            lanes,
+        ) + self.from_lanes.aggregate_projected(
+            projected,
             edges.agent_lane_index.clone(),
             edges.agent_lane_pose.clone(),
             edges.agent_lane_mask.clone(),
@@ -192,14 +201,19 @@ impl AgentRound {
 }
 
 impl LaneRound {
+    /// `lane_lane`: the summed lane -> lane messages when already known (the first round's,
+    /// cached per rollout), else computed here.
     fn forward(
         &self,
         agents: Tensor<3>,
         lanes: Tensor<3>,
         lane_input: &LaneInput,
         edges: &InteractionEdges,
+        lane_lane: Option<Tensor<3>>,
     ) -> Tensor<3> {
-        let messages = lane_messages(&self.from_lanes, lanes.clone(), lane_input)
+        let lane_lane =
+            lane_lane.unwrap_or_else(|| lane_messages(&self.from_lanes, lanes.clone(), lane_input));
+        let messages = lane_lane
             + self.from_agents.aggregate(
                 agents,
                 edges.lane_agent_index.clone(),
@@ -208,6 +222,16 @@ impl LaneRound {
             );
         self.update.forward(lanes, messages)
     }
+}
+
+/// What the first round computes from the encoded lane graph alone. The map is static, so a
+/// rollout computes it once with h_m instead of at every step; the forward is unchanged.
+#[derive(Debug, Clone)]
+pub struct StaticLaneTerms {
+    /// The first agent round's sender projection of h_m, `[B, L, C]`.
+    agent_round_lanes: Tensor<3>,
+    /// The first lane round's summed lane -> lane messages, `[B, L, C]` (none with one round).
+    lane_round_lanes: Option<Tensor<3>>,
 }
 
 /// Synchronous rounds: round r updates agents and lane nodes from both sets' round r - 1
@@ -240,20 +264,51 @@ impl HeteroGnn {
         }
     }
 
+    /// The first round's terms that depend on the lane features `lanes` (h_m) only; `None`
+    /// without rounds.
+    pub fn static_lane_terms(
+        &self,
+        lanes: Tensor<3>,
+        lane_input: &LaneInput,
+    ) -> Option<StaticLaneTerms> {
+        let first = self.agent_rounds.first()?;
+        Some(StaticLaneTerms {
+            agent_round_lanes: first.from_lanes.project(lanes.clone()),
+            lane_round_lanes: self
+                .lane_rounds
+                .first()
+                .map(|round| lane_messages(&round.from_lanes, lanes, lane_input)),
+        })
+    }
+
     /// Agent features `[B, N, C]` and lane features `[B, L, C]` -> fused agent features
-    /// `[B, N, C]` (the agents' input features when there are no rounds).
+    /// `[B, N, C]` (the agents' input features when there are no rounds). `cached` must come
+    /// from [`Self::static_lane_terms`] of the same `lanes` and parameters.
     pub fn forward(
         &self,
         agents: Tensor<3>,
         lanes: Tensor<3>,
         lane_input: &LaneInput,
         edges: &InteractionEdges,
+        cached: Option<&StaticLaneTerms>,
     ) -> Tensor<3> {
         let (mut a, mut m) = (agents, lanes);
         for (r, agent_round) in self.agent_rounds.iter().enumerate() {
-            let next_a = agent_round.forward(a.clone(), m.clone(), edges);
+            let first = cached.filter(|_| r == 0);
+            let next_a = agent_round.forward(
+                a.clone(),
+                m.clone(),
+                edges,
+                first.map(|c| c.agent_round_lanes.clone()),
+            );
             if let Some(lane_round) = self.lane_rounds.get(r) {
-                m = lane_round.forward(a, m, lane_input, edges);
+                m = lane_round.forward(
+                    a,
+                    m,
+                    lane_input,
+                    edges,
+                    first.and_then(|c| c.lane_round_lanes.clone()),
+                );
             }
             a = next_a;
         }

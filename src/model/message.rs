@@ -43,8 +43,25 @@ impl EdgeMessage {
         pose: Tensor<4>,
         mask: Tensor<3, Bool>,
     ) -> Tensor<3> {
-        let projected = gather_neighbours(rowwise(&self.sender, senders), index);
-        masked_max(relu(projected + rowwise(&self.pose, pose)), mask)
+        self.aggregate_projected(self.project(senders), index, pose, mask)
+    }
+
+    /// `W_s h` for every sender `[B, M, C]`: what [`Self::aggregate_projected`] takes, so
+    /// senders that do not change over a rollout (the encoded lane graph) are projected once.
+    pub fn project(&self, senders: Tensor<3>) -> Tensor<3> {
+        rowwise(&self.sender, senders)
+    }
+
+    /// [`Self::aggregate`] with the senders already [`Self::project`]ed.
+    pub fn aggregate_projected(
+        &self,
+        projected: Tensor<3>,
+        index: Tensor<3, Int>,
+        pose: Tensor<4>,
+        mask: Tensor<3, Bool>,
+    ) -> Tensor<3> {
+        let gathered = gather_neighbours(projected, index);
+        masked_max(relu(gathered + rowwise(&self.pose, pose)), mask)
     }
 
     /// Every sender to every receiver: `senders` `[B, M, C]`, `pose` `[B, R, M, P]`, `mask`

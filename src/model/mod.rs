@@ -28,5 +28,5 @@ pub mod rowwise;
 pub use config::ModelConfig;
 pub use distribution::ActionDistribution;
 pub use input::{AgentInput, LaneInput};
-pub use network::{ParameterCounts, PolicyNetwork, SceneEncoder, ValueNetwork};
+pub use network::{EncodedLanes, ParameterCounts, PolicyNetwork, SceneEncoder, ValueNetwork};
 pub use network_policy::{ActionMode, NetworkPolicy};

@@ -11,7 +11,7 @@ use super::config::ModelConfig;
 use super::distribution::ActionDistribution;
 use super::history::HistoryEncoder;
 use super::input::{AgentInput, LaneInput, history_features};
-use super::interaction::{HeteroGnn, InteractionEdges};
+use super::interaction::{HeteroGnn, InteractionEdges, StaticLaneTerms};
 use super::lane_encoder::LaneGraphEncoder;
 use super::relative_pose::relative_pose_features;
 use super::rowwise::rowwise;
@@ -58,6 +58,16 @@ pub struct ParameterCounts {
     pub total: usize,
 }
 
+/// The encoded lane graph of a batch: h_m and what the HeteroGNN's first round derives from it
+/// alone. The map does not change during a rollout, so a rollout encodes it once
+/// ([`PolicyNetwork::encode_lanes`]) and passes it to every step's forward.
+#[derive(Debug, Clone)]
+pub struct EncodedLanes {
+    /// h_m, `[B, L, hidden]`.
+    pub features: Tensor<3>,
+    cached: Option<StaticLaneTerms>,
+}
+
 /// History encoder + lane-graph encoder + HeteroGNN: fused features h_i per agent.
 #[derive(Module, Debug)]
 pub struct SceneEncoder {
@@ -85,16 +95,32 @@ impl SceneEncoder {
         }
     }
 
-    /// h_m, `[B, L, hidden]`: depends on the map only, so a rollout computes it once.
-    pub fn encode_lanes(&self, lanes: &LaneInput) -> Tensor<3> {
-        self.lanes.forward(lanes)
+    /// h_m and the first round's lane terms: the map only, so a rollout computes it once.
+    pub fn encode_lanes(&self, lanes: &LaneInput) -> EncodedLanes {
+        let features = self.lanes.forward(lanes);
+        EncodedLanes {
+            cached: self.interaction.static_lane_terms(features.clone(), lanes),
+            features,
+        }
     }
 
     /// Fused agent features `[B, N, hidden]`, zero for agents outside `agents.mask`.
-    pub fn forward(&self, agents: &AgentInput, lanes: &LaneInput, h_m: Tensor<3>) -> Tensor<3> {
+    /// `encoded` must come from [`Self::encode_lanes`] of `lanes` with these parameters.
+    pub fn forward(
+        &self,
+        agents: &AgentInput,
+        lanes: &LaneInput,
+        encoded: &EncodedLanes,
+    ) -> Tensor<3> {
         let h_a = self.history.forward(agents.history.clone());
         let edges = InteractionEdges::build(agents, lanes, &self.config);
-        let fused = self.interaction.forward(h_a, h_m, lanes, &edges);
+        let fused = self.interaction.forward(
+            h_a,
+            encoded.features.clone(),
+            lanes,
+            &edges,
+            encoded.cached.as_ref(),
+        );
         fused.mask_fill(agents.mask.clone().bool_not().unsqueeze_dim::<3>(2), 0.0)
     }
 
@@ -135,8 +161,9 @@ impl EncoderWithHead {
     }
 
     /// `[B, N, outputs]`.
-    fn forward(&self, agents: &AgentInput, lanes: &LaneInput, h_m: Tensor<3>) -> Tensor<3> {
-        self.head.forward(self.encoder.forward(agents, lanes, h_m))
+    fn forward(&self, agents: &AgentInput, lanes: &LaneInput, encoded: &EncodedLanes) -> Tensor<3> {
+        self.head
+            .forward(self.encoder.forward(agents, lanes, encoded))
     }
 }
 
@@ -166,8 +193,9 @@ macro_rules! shared_network_methods {
                 self.network.encoder.config()
             }
 
-            /// h_m for [`Self::forward`]: the map only, so a rollout computes it once.
-            pub fn encode_lanes(&self, lanes: &LaneInput) -> Tensor<3> {
+            /// The encoded lane graph for [`Self::forward`]: the map only, so a rollout
+            /// computes it once.
+            pub fn encode_lanes(&self, lanes: &LaneInput) -> EncodedLanes {
                 self.network.encoder.encode_lanes(lanes)
             }
 
@@ -189,10 +217,10 @@ impl PolicyNetwork {
         &self,
         agents: &AgentInput,
         lanes: &LaneInput,
-        h_m: Tensor<3>,
+        encoded: &EncodedLanes,
     ) -> ActionDistribution {
         let config = self.config();
-        let out = self.network.forward(agents, lanes, h_m);
+        let out = self.network.forward(agents, lanes, encoded);
         let [b, n, _] = out.dims();
         let device = out.device();
         let scale = Tensor::<1>::from_floats(
@@ -216,10 +244,114 @@ impl PolicyNetwork {
 
 impl ValueNetwork {
     /// `[B, N]` value estimates; 0 outside `agents.mask`.
-    pub fn forward(&self, agents: &AgentInput, lanes: &LaneInput, h_m: Tensor<3>) -> Tensor<2> {
-        let out = self.network.forward(agents, lanes, h_m);
+    pub fn forward(
+        &self,
+        agents: &AgentInput,
+        lanes: &LaneInput,
+        encoded: &EncodedLanes,
+    ) -> Tensor<2> {
+        let out = self.network.forward(agents, lanes, encoded);
         let [b, n, _] = out.dims();
         out.reshape([b, n])
             .mask_fill(agents.mask.clone().bool_not(), 0.0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+
+    use burn::optim::GradientsParams;
+
+    use super::*;
+    use crate::map::{LaneGraph, Map, ProceduralMap};
+    use crate::scene::{Scene, SceneBatch};
+    use crate::sim::bench::synthetic_scene;
+    use crate::sim::logged_frames;
+
+    /// Sum of squares of every gradient of a module's parameters.
+    struct SquaredSum<'g> {
+        grads: &'g GradientsParams,
+        sum: f64,
+    }
+
+    impl burn::module::ModuleVisitor for SquaredSum<'_> {
+        fn visit_float<const D: usize>(&mut self, param: &burn::module::Param<Tensor<D>>) {
+            if let Some(g) = self.grads.get::<D>(param.id) {
+                self.sum += g.powi_scalar(2).sum().into_scalar::<f64>();
+            }
+        }
+    }
+
+    fn values(t: Tensor<3>) -> Vec<f32> {
+        t.into_data()
+            .convert::<f32>()
+            .try_into_vec::<f32>()
+            .expect("floats")
+    }
+
+    /// The first round's lane terms computed once per rollout give the forward (and gradient)
+    /// of computing them at every step.
+    #[test]
+    fn cached_lane_terms_change_no_output_or_gradient() {
+        #[allow(deprecated)]
+        let device = Device::ndarray().autodiff();
+        let od = ProceduralMap::preset("on_ramp_merge")
+            .and_then(|p| p.build())
+            .expect("map");
+        let map = Arc::new(Map::from_opendrive(&od, "merge").expect("map"));
+        let graph = Arc::new(LaneGraph::build(&map, 10.0));
+        let scenes: Vec<Scene> = (0..3)
+            .map(|k| synthetic_scene(&map, &graph, 4 + k, k, 4, 1))
+            .collect();
+        let refs: Vec<&Scene> = scenes.iter().collect();
+        let batch = SceneBatch::from_scenes(&refs, &device).expect("batch");
+        let config = ModelConfig {
+            hidden: 16,
+            lane_layers: 1,
+            interaction_rounds: 3,
+            head_hidden: vec![16],
+            ..ModelConfig::default()
+        };
+        let policy = PolicyNetwork::new(&config, &device);
+        let lanes = LaneInput::from_batch(&batch, &config);
+        let agents =
+            AgentInput::from_frames(&batch, &logged_frames(&batch, batch.history_steps), &config);
+        let cached = policy.encode_lanes(&lanes);
+        assert!(cached.cached.is_some());
+        let uncached = EncodedLanes {
+            features: cached.features.clone(),
+            cached: None,
+        };
+        let with = policy.forward(&agents, &lanes, &cached);
+        let without = policy.forward(&agents, &lanes, &uncached);
+        let (a, b) = (values(with.mean.clone()), values(without.mean.clone()));
+        assert!(a.iter().any(|v| v.abs() > 1e-6));
+        for (x, y) in a.iter().zip(&b) {
+            assert!((x - y).abs() <= 1e-6 * x.abs().max(1.0), "{x} vs {y}");
+        }
+        // Gradients of the same scalar, one parameter at a time, agree too.
+        let grads_with = GradientsParams::from_grads(with.mean.sum().backward(), &policy);
+        let lanes2 = LaneInput::from_batch(&batch, &config);
+        let fresh = policy.encode_lanes(&lanes2);
+        let uncached = EncodedLanes {
+            features: fresh.features,
+            cached: None,
+        };
+        let grads_without = GradientsParams::from_grads(
+            policy
+                .forward(&agents, &lanes2, &uncached)
+                .mean
+                .sum()
+                .backward(),
+            &policy,
+        );
+        let norm = |g: &GradientsParams| {
+            let mut sum = SquaredSum { grads: g, sum: 0.0 };
+            policy.visit(&mut sum);
+            sum.sum.sqrt()
+        };
+        let (gw, gwo) = (norm(&grads_with), norm(&grads_without));
+        assert!(gw > 0.0 && (gw - gwo).abs() <= 1e-5 * gw, "{gw} vs {gwo}");
     }
 }

@@ -2,11 +2,9 @@
 //! the simulated frames (never the log past the current step) and returns the mean action or
 //! a reparameterised sample. The lane graph is encoded once per rollout.
 
-use burn::prelude::*;
-
 use super::distribution::ActionDistribution;
 use super::input::{AgentInput, LaneInput};
-use super::network::PolicyNetwork;
+use super::network::{EncodedLanes, PolicyNetwork};
 use crate::scene::SceneBatch;
 use crate::sim::{Controls, Observation, Policy};
 
@@ -23,18 +21,18 @@ pub enum ActionMode {
 pub struct NetworkPolicy<'n> {
     network: &'n PolicyNetwork,
     lanes: LaneInput,
-    h_m: Tensor<3>,
+    encoded: EncodedLanes,
     mode: ActionMode,
 }
 
 impl<'n> NetworkPolicy<'n> {
     pub fn new(network: &'n PolicyNetwork, batch: &SceneBatch, mode: ActionMode) -> Self {
         let lanes = LaneInput::from_batch(batch, network.config());
-        let h_m = network.encode_lanes(&lanes);
+        let encoded = network.encode_lanes(&lanes);
         Self {
             network,
             lanes,
-            h_m,
+            encoded,
             mode,
         }
     }
@@ -42,7 +40,7 @@ impl<'n> NetworkPolicy<'n> {
     /// The action distribution for this observation.
     pub fn distribution(&self, obs: &Observation) -> ActionDistribution {
         let agents = AgentInput::from_frames(obs.batch, obs.frames, self.network.config());
-        self.network.forward(&agents, &self.lanes, self.h_m.clone())
+        self.network.forward(&agents, &self.lanes, &self.encoded)
     }
 }
 

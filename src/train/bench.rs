@@ -2,7 +2,8 @@
 //! initial scenes per second (one AdamW step on `il_minibatch` nominal scenes, BPTT through
 //! the whole 6 s rollout), and PPO in agent-steps per second (one RL iteration: `ppo_batch`
 //! rollouts collected with sampled actions, then one step per `ppo_minibatch`), both through
-//! the real training loop on the real A9 scenes.
+//! the real training loop on the real A9 scenes, with `devices` data-parallel workers. Each
+//! figure also comes with the cores it kept busy and the process's peak memory.
 
 use std::time::Instant;
 
@@ -11,11 +12,12 @@ use serde::Serialize;
 
 use super::config::{Method, TrainConfig};
 use super::session::{devices, training_data};
-use super::trainer::Trainer;
+use super::trainer::{IterationTiming, Trainer};
 use crate::backend::Backend;
 use crate::data::A9Dataset;
 use crate::error::Result;
 use crate::model::ModelConfig;
+use crate::usage::{CoreMeter, peak_rss_mb, reset_peak_rss};
 
 #[derive(Debug, Clone, Serialize)]
 pub struct TrainBenchReport {
@@ -30,7 +32,28 @@ pub struct TrainBenchReport {
     /// Alive agent-steps collected in the iteration (each also re-evaluated in its update).
     pub ppo_agent_steps: usize,
     pub ppo_agent_steps_per_s: f64,
+    /// The iteration's two phases: sampled rollouts (no autodiff), then the updates.
+    pub ppo_collect_s: f64,
+    pub ppo_collect_agent_steps_per_s: f64,
+    pub ppo_update_s: f64,
+    pub ppo_update_agent_steps_per_s: f64,
+    pub devices: usize,
+    /// CPU time / wall time over the IL step and over the PPO iteration.
+    pub il_cores_busy: Option<f64>,
+    pub ppo_cores_busy: Option<f64>,
+    /// Resident-memory high-water mark of each run (MiB).
+    pub il_peak_rss_mb: Option<f64>,
+    pub ppo_peak_rss_mb: Option<f64>,
     pub threads: usize,
+}
+
+/// One timed iteration of a method.
+struct Timed {
+    seconds: f64,
+    agent_steps: usize,
+    timing: IterationTiming,
+    cores_busy: Option<f64>,
+    peak_rss_mb: Option<f64>,
 }
 
 /// Times one IL step and one RL (factorized PPO) iteration.
@@ -41,8 +64,9 @@ pub fn bench_training(
     il_minibatch: usize,
     ppo_batch: usize,
     ppo_minibatch: usize,
+    device_count: usize,
 ) -> Result<TrainBenchReport> {
-    let run = |method: Method| -> Result<(f64, usize)> {
+    let run = |method: Method| -> Result<Timed> {
         let mut config =
             TrainConfig::from_toml_str(&format!("method = \"{}\"", method.name()), "bench")?;
         config.model = model.clone();
@@ -51,6 +75,7 @@ pub fn bench_training(
         config.imitation.minibatch = il_minibatch;
         config.ppo.batch = ppo_batch;
         config.ppo.minibatch = ppo_minibatch;
+        config.run.devices = Some(device_count);
         config.validate("bench")?;
         let data = training_data(dataset, &config)?;
         let dir = std::env::temp_dir().join(format!(
@@ -60,15 +85,25 @@ pub fn bench_training(
         ));
         let _ = std::fs::remove_dir_all(&dir);
         let mut trainer = Trainer::new(config.clone(), &data, devices(&config)?, &dir, false)?;
+        reset_peak_rss();
+        let meter = CoreMeter::start();
         let start = Instant::now();
         trainer.run(&ProgressBar::hidden(), Some(1))?;
         let seconds = start.elapsed().as_secs_f64();
-        let steps = trainer.curves().last().map_or(0, |r| r.ppo_agent_steps);
+        let cores_busy = meter.cores_busy();
+        let agent_steps = trainer.curves().last().map_or(0, |r| r.ppo_agent_steps);
         let _ = std::fs::remove_dir_all(&dir);
-        Ok((seconds, steps))
+        Ok(Timed {
+            seconds,
+            agent_steps,
+            timing: trainer.last_timing(),
+            cores_busy,
+            peak_rss_mb: peak_rss_mb(),
+        })
     };
-    let (il_s, _) = run(Method::Il)?;
-    let (ppo_s, agent_steps) = run(Method::Rl)?;
+    let il = run(Method::Il)?;
+    let ppo = run(Method::Rl)?;
+    let per_s = |steps: usize, s: f64| steps as f64 / s.max(1e-9);
     #[allow(deprecated)]
     let parameters = {
         use burn::module::Module;
@@ -78,13 +113,22 @@ pub fn bench_training(
         backend: backend.to_string(),
         model_parameters: parameters,
         il_minibatch,
-        il_step_s: il_s,
-        il_scenes_per_s: il_minibatch as f64 / il_s,
+        il_step_s: il.seconds,
+        il_scenes_per_s: il_minibatch as f64 / il.seconds,
         ppo_batch,
         ppo_minibatch,
-        ppo_iteration_s: ppo_s,
-        ppo_agent_steps: agent_steps,
-        ppo_agent_steps_per_s: agent_steps as f64 / ppo_s,
+        ppo_iteration_s: ppo.seconds,
+        ppo_agent_steps: ppo.agent_steps,
+        ppo_agent_steps_per_s: per_s(ppo.agent_steps, ppo.seconds),
+        ppo_collect_s: ppo.timing.collect_s,
+        ppo_collect_agent_steps_per_s: per_s(ppo.agent_steps, ppo.timing.collect_s),
+        ppo_update_s: ppo.timing.update_s,
+        ppo_update_agent_steps_per_s: per_s(ppo.agent_steps, ppo.timing.update_s),
+        devices: device_count,
+        il_cores_busy: il.cores_busy,
+        ppo_cores_busy: ppo.cores_busy,
+        il_peak_rss_mb: il.peak_rss_mb,
+        ppo_peak_rss_mb: ppo.peak_rss_mb,
         threads: rayon::current_num_threads(),
     })
 }

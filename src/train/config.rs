@@ -310,8 +310,12 @@ impl Default for DataConfig {
 #[serde(deny_unknown_fields, default)]
 pub struct RunConfig {
     pub backend: Backend,
-    /// Devices for data-parallel training (each minibatch is split across them).
-    pub devices: usize,
+    /// Worker devices for data-parallel training (each minibatch is split across them);
+    /// unset: one per core on the CPU backends, one on a GPU. How a run executes, not what it
+    /// computes: losses and gradients agree to float rounding whatever the count, so a run may
+    /// be resumed with another.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub devices: Option<usize>,
     /// Write a checkpoint every this many iterations (and always at the end).
     pub checkpoint_every: usize,
     /// Stop after this many iterations in all (tiny runs, tests); `None` = all epochs.
@@ -322,14 +326,31 @@ impl Default for RunConfig {
     fn default() -> Self {
         Self {
             backend: Backend::NdArray,
-            devices: 1,
+            devices: None,
             checkpoint_every: 1,
             max_iterations: None,
         }
     }
 }
 
+impl RunConfig {
+    /// The worker devices this run uses: `devices`, or the backend's default.
+    pub fn device_count(&self) -> usize {
+        self.devices
+            .unwrap_or_else(|| super::shards::default_devices(self.backend))
+    }
+}
+
 impl TrainConfig {
+    /// What identifies a run for `--resume`: the config as TOML without `run.devices` (how
+    /// many workers computed a step changes no result).
+    pub fn identity_toml(&self) -> Result<String> {
+        let mut identity = self.clone();
+        identity.run.devices = None;
+        toml::to_string(&identity)
+            .map_err(|e| Error::InvalidArgument(format!("config does not serialise: {e}")))
+    }
+
     /// Reads and validates a run file; a relative reference checkpoint is resolved against the
     /// file's folder.
     pub fn from_toml_file(path: &Path) -> Result<Self> {
@@ -473,7 +494,7 @@ impl TrainConfig {
         if self.data.max_rollout_steps == Some(0) {
             return fail("data.max_rollout_steps", "expected at least 1 step");
         }
-        if self.run.devices == 0 || self.run.checkpoint_every == 0 {
+        if self.run.devices == Some(0) || self.run.checkpoint_every == 0 {
             return fail(
                 "run.devices",
                 "devices and checkpoint_every must be at least 1",

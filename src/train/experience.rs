@@ -17,7 +17,9 @@ use super::gae::gae;
 use super::shaping::speed_shaping;
 use super::sources::Part;
 use crate::error::Result;
-use crate::model::{ActionDistribution, AgentInput, LaneInput, PolicyNetwork, ValueNetwork};
+use crate::model::{
+    ActionDistribution, AgentInput, EncodedLanes, LaneInput, PolicyNetwork, ValueNetwork,
+};
 use crate::scenario::hero_scripts;
 use crate::scene::SceneBatch;
 use crate::sim::{
@@ -151,9 +153,9 @@ impl HostNoise {
 struct Recorder<'n> {
     nets: &'n CollectNetworks<'n>,
     lanes: LaneInput,
-    policy_lanes: Tensor<3>,
-    value_lanes: Tensor<3>,
-    reference_lanes: Option<Tensor<3>>,
+    policy_lanes: EncodedLanes,
+    value_lanes: EncodedLanes,
+    reference_lanes: Option<EncodedLanes>,
     noise: HostNoise,
     actions: Vec<Tensor<3>>,
     log_probs: Vec<Tensor<2>>,
@@ -183,7 +185,7 @@ impl<'n> Recorder<'n> {
     fn value_of(&self, agents: &AgentInput) -> Tensor<2> {
         self.nets
             .value
-            .forward(agents, &self.lanes, self.value_lanes.clone())
+            .forward(agents, &self.lanes, &self.value_lanes)
     }
 }
 
@@ -193,7 +195,7 @@ impl Policy for Recorder<'_> {
         let dist = self
             .nets
             .policy
-            .forward(&agents, &self.lanes, self.policy_lanes.clone());
+            .forward(&agents, &self.lanes, &self.policy_lanes);
         let dims = dist.mean.dims();
         let noise = Tensor::<3>::from_data(
             TensorData::new(self.noise.normal(dims[1]), dims),
@@ -204,7 +206,7 @@ impl Policy for Recorder<'_> {
         self.values.push(self.value_of(&agents));
         if let (Some(reference), Some(lanes)) = (self.nets.reference, &self.reference_lanes) {
             self.reference
-                .push(reference.forward(&agents, &self.lanes, lanes.clone()));
+                .push(reference.forward(&agents, &self.lanes, lanes));
         }
         self.dists.push(dist);
         self.actions.push(action.clone());

@@ -128,13 +128,13 @@ pub fn behaviour_cloning(
 ) -> Tensor<1> {
     let config = policy.config();
     let lanes = LaneInput::from_batch(batch, config);
-    let h_m = policy.encode_lanes(&lanes);
+    let encoded = policy.encode_lanes(&lanes);
     let device = batch.agent_states.device();
     let mut total = Tensor::<1>::zeros([1], &device);
     for (t, (action, mask)) in labels.actions.iter().zip(&labels.mask).enumerate() {
         let frames = logged_frames(batch, batch.history_steps + t);
         let agents = AgentInput::from_frames(batch, &frames, config);
-        let dist = policy.forward(&agents, &lanes, h_m.clone());
+        let dist = policy.forward(&agents, &lanes, &encoded);
         let nll = dist.log_prob(action.clone()).neg() * mask.clone().float();
         total = total + nll.sum();
     }

@@ -8,7 +8,8 @@
 //! - [`experience`]: closed-loop rollouts with sampled actions, rewards, early termination;
 //! - [`gae`], [`ppo`]: advantages and the PPO losses; [`shaping`]: RL-Shaped's reward;
 //! - [`imitation`]: closed-loop IL (BPTT) and BC;
-//! - [`gradients`]: global-norm clipping and multi-device sums;
+//! - [`gradients`]: global-norm clipping and multi-device sums; [`shards`]: scenes bucketed by
+//!   size and spread over worker devices;
 //! - [`checkpoint`], [`curves`]: atomic checkpoints and CSV curves;
 //! - [`trainer`]: the loop; [`bench`]: throughput.
 
@@ -23,6 +24,7 @@ pub mod imitation;
 pub mod ppo;
 pub mod session;
 pub mod shaping;
+pub mod shards;
 pub mod sources;
 pub mod trainer;
 
@@ -33,4 +35,4 @@ pub use config::{
 };
 pub use curves::CurveRow;
 pub use sources::{InitialState, Part, TrainingData};
-pub use trainer::{TrainSummary, Trainer};
+pub use trainer::{IterationTiming, TrainSummary, Trainer};

@@ -115,9 +115,9 @@ pub fn ppo_terms(
     let mut kls = Vec::new();
     for t in 0..exp.steps {
         let agents = AgentInput::from_frames(&exp.batch, exp.frames_at(t), model);
-        let dist = policy.forward(&agents, &lanes, policy_lanes.clone());
+        let dist = policy.forward(&agents, &lanes, &policy_lanes);
         log_probs.push(dist.log_prob(exp.actions[t].clone()));
-        values.push(value.forward(&agents, &lanes, value_lanes.clone()));
+        values.push(value.forward(&agents, &lanes, &value_lanes));
         if with_kl && let Some(reference) = exp.reference.get(t) {
             kls.push(dist.kl(reference));
         }

@@ -11,9 +11,10 @@ use super::trainer::{TrainSummary, Trainer};
 use crate::data::A9Dataset;
 use crate::error::Result;
 
-/// The devices of `config.run`: `devices` autodiff devices of its backend.
+/// The devices of `config.run`: [`super::RunConfig::device_count`] autodiff devices of its
+/// backend.
 pub fn devices(config: &TrainConfig) -> Result<Vec<burn::prelude::Device>> {
-    (0..config.run.devices)
+    (0..config.run.device_count())
         .map(|_| config.run.backend.device(true))
         .collect()
 }

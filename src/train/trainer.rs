@@ -13,9 +13,10 @@
 //! - BC and IL take one step per `imitation.minibatch` nominal initial states.
 //!
 //! An *epoch* is as many initial states as `optimizer.epoch_scenes` (default: the nominal
-//! training set); the learning rate decays per epoch. With several devices every minibatch is
-//! split across them (data parallel): each computes its share's gradient on a fork of the
-//! networks, and the sums are added on the first device before the step.
+//! training set); the learning rate decays per epoch. Every minibatch is cut into buckets of
+//! similar-size scenes spread over the devices (data parallel, [`super::shards`]): each device
+//! computes its buckets' gradient on a fork of the networks, and the sums are added on the
+//! first device before the step.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -36,6 +37,7 @@ use super::experience::{CollectNetworks, CollectStats, Experience, RewardSetting
 use super::gradients::{clip_global_norm, sum_on_device};
 use super::imitation::{BcLabels, behaviour_cloning, closed_loop_imitation, imitation_count};
 use super::ppo::{AdvantageScale, ppo_terms};
+use super::shards::{BUCKET_SCENES, per_device, plan};
 use super::sources::{InitialState, Part, TrainingData};
 use crate::error::{Error, Result};
 use crate::model::{PolicyNetwork, ValueNetwork};
@@ -129,61 +131,6 @@ struct Normalisers {
     kl: usize,
 }
 
-/// Splits every part's scenes into `shards` contiguous chunks; shard k gets chunk k of each.
-/// Shards left empty (more devices than scenes) are dropped, so no device gets no work.
-fn shard<'a>(parts: Vec<Part<'a>>, shards: usize) -> Vec<Vec<Part<'a>>> {
-    let mut out: Vec<Vec<Part<'a>>> = (0..shards).map(|_| Vec::new()).collect();
-    for part in parts {
-        let per = part.scenes.len().div_ceil(shards);
-        for (k, chunk) in part.scenes.chunks(per.max(1)).enumerate() {
-            let start = k * per;
-            let range = start..start + chunk.len();
-            out[k].push(Part {
-                scenes: chunk.to_vec(),
-                scenarios: if part.scenarios.is_empty() {
-                    Vec::new()
-                } else {
-                    part.scenarios[range.clone()].to_vec()
-                },
-                slots: part.slots[range].to_vec(),
-            });
-        }
-    }
-    out.retain(|parts| !parts.is_empty());
-    out
-}
-
-/// Runs `f` once per (work item, cache), on scoped threads when there are several.
-fn per_device<W: Send, T: Send>(
-    work: Vec<W>,
-    caches: &mut [MapCaches],
-    f: impl Fn(usize, W, &mut MapCaches) -> Result<T> + Sync,
-) -> Result<Vec<T>> {
-    if work.len() == 1 {
-        let w = work.into_iter().next().expect("one work item");
-        return Ok(vec![f(0, w, &mut caches[0])?]);
-    }
-    std::thread::scope(|scope| {
-        let handles: Vec<_> = work
-            .into_iter()
-            .zip(caches.iter_mut())
-            .enumerate()
-            .map(|(k, (w, cache))| {
-                let f = &f;
-                scope.spawn(move || f(k, w, cache))
-            })
-            .collect();
-        handles
-            .into_iter()
-            .map(|h| {
-                h.join().unwrap_or_else(|_| {
-                    Err(Error::InvalidArgument("a device worker panicked".into()))
-                })
-            })
-            .collect()
-    })
-}
-
 pub struct Trainer<'d> {
     config: TrainConfig,
     data: &'d TrainingData,
@@ -200,6 +147,16 @@ pub struct Trainer<'d> {
     state: LoopState,
     curves: Curves,
     started: Instant,
+    timing: IterationTiming,
+}
+
+/// Where the last iteration's wall time went (`rtr bench train`).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct IterationTiming {
+    /// Closed-loop rollouts with sampled actions (PPO methods; no autodiff).
+    pub collect_s: f64,
+    /// Loss forward, backward and optimizer steps.
+    pub update_s: f64,
 }
 
 fn optimizer(config: &TrainConfig) -> ModuleOptimizer {
@@ -234,7 +191,10 @@ impl<'d> Trainer<'d> {
                     optimizer(&config),
                     optimizer(&config),
                 )?;
-                if c.state.config_toml != config_toml {
+                let same_run = TrainConfig::from_toml_str(&c.state.config_toml, "checkpoint")
+                    .and_then(|stored| stored.identity_toml())
+                    .is_ok_and(|stored| stored == config.identity_toml().unwrap_or_default());
+                if !same_run {
                     return Err(Error::InvalidArgument(format!(
                         "{}: the run there was made with another config; resume with the same \
                          file or start a new --out folder",
@@ -313,6 +273,7 @@ impl<'d> Trainer<'d> {
             state,
             curves,
             started: Instant::now(),
+            timing: IterationTiming::default(),
             config,
         })
     }
@@ -331,6 +292,10 @@ impl<'d> Trainer<'d> {
 
     pub fn curves(&self) -> &[CurveRow] {
         self.curves.rows()
+    }
+
+    pub fn last_timing(&self) -> IterationTiming {
+        self.timing
     }
 
     /// Initial states one iteration consumes.
@@ -432,12 +397,18 @@ impl<'d> Trainer<'d> {
             }
         }
         let data = self.data;
+        let start = Instant::now();
         if !config.method.uses_ppo() {
             let states = data.sample(&mut rng, config.imitation.minibatch, 0.0);
             let work = self.prepare(data.parts(&states), None)?;
-            return self
+            let row = self
                 .update(i, epoch, lr, work, CollectStats::default(), last_checkpoint)
                 .map(|(row, _)| row);
+            self.timing = IterationTiming {
+                collect_s: 0.0,
+                update_s: start.elapsed().as_secs_f64(),
+            };
+            return row;
         }
         let states = data.sample(&mut rng, config.ppo.batch, config.alpha);
         let minibatches: Vec<&[InitialState]> = states.chunks(config.ppo.minibatch).collect();
@@ -457,6 +428,7 @@ impl<'d> Trainer<'d> {
             }
             collected.push(work);
         }
+        let collect_s = start.elapsed().as_secs_f64();
         let mut order: Vec<usize> = (0..collected.len()).collect();
         let mut row = None;
         for pass in 0..config.ppo.epochs {
@@ -471,6 +443,10 @@ impl<'d> Trainer<'d> {
                 row = Some(r);
             }
         }
+        self.timing = IterationTiming {
+            collect_s,
+            update_s: start.elapsed().as_secs_f64() - collect_s,
+        };
         row.ok_or_else(|| Error::InvalidArgument("ppo.batch produced no minibatch".into()))
     }
 
@@ -482,7 +458,7 @@ impl<'d> Trainer<'d> {
         collect_seed: Option<u64>,
     ) -> Result<Vec<Vec<Work<'a>>>> {
         let config = &self.config;
-        let shards = shard(parts, self.devices.len());
+        let shards = plan(parts, self.devices.len(), BUCKET_SCENES);
         let devices: Vec<Device> = self.devices.iter().map(|d| d.clone().inner()).collect();
         let policy = self.policy.valid();
         let value = self.value.valid();
