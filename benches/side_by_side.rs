@@ -43,8 +43,13 @@ fn usage(message: &str) -> ! {
 }
 
 fn parse_options() -> Options {
-    // cargo bench appends `--bench` to a harness = false target's arguments.
-    let mut args = std::env::args().skip(1).peekable();
+    // cargo bench appends `--bench` to a harness = false target's arguments (after ours,
+    // even after a `--`): drop it.
+    let mut all: Vec<String> = std::env::args().skip(1).collect();
+    if all.last().is_some_and(|a| a == "--bench") {
+        all.pop();
+    }
+    let mut args = all.into_iter().peekable();
     let (mut baseline, mut runs, mut benches) = (None, 5, vec!["model".to_string()]);
     let mut passthrough = Vec::new();
     while let Some(arg) = args.next() {
@@ -62,7 +67,7 @@ fn parse_options() -> Options {
                     .filter(|&n| n >= 1)
                     .unwrap_or_else(|| usage("--runs expects a whole number >= 1"))
             }
-            "--bench" if args.peek().is_some_and(|v| !v.starts_with("--")) => {
+            "--bench" => {
                 benches = value(&mut args).split(',').map(str::to_string).collect();
                 if let Some(bad) = benches
                     .iter()
@@ -73,7 +78,6 @@ fn parse_options() -> Options {
                     ));
                 }
             }
-            "--bench" => {}
             "--" => passthrough = args.by_ref().collect(),
             other => usage(&format!("unknown argument `{other}`")),
         }

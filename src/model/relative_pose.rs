@@ -7,9 +7,10 @@
 //! `[u / r, v / r, sin dtheta, cos dtheta, ln(1 + r), sin(2 pi r / w_k), cos(2 pi r / w_k)...]`
 //! for the configured wavelengths w_k. (u/r, v/r) is the sine/cosine of the bearing.
 
-use std::f64::consts::TAU;
+use std::f64::consts::{FRAC_PI_2, TAU};
 
 use burn::prelude::*;
+use burn::tensor::TensorData;
 
 /// Small offset under the square root so the encoding of a pose seen from itself has a finite
 /// gradient (r is then 1e-3 m, the bearing terms 0).
@@ -42,17 +43,39 @@ pub fn relative_pose<const D: usize>(
     let r = (u.clone().powi_scalar(2) + v.clone().powi_scalar(2))
         .add_scalar(DISTANCE_EPSILON_SQ)
         .sqrt();
-    let mut parts = vec![
-        u / r.clone(),
-        v / r.clone(),
-        dheading.clone().sin(),
-        dheading.cos(),
-        r.clone().log1p(),
-    ];
-    for w in wavelengths {
-        let phase = r.clone().mul_scalar(TAU / w);
-        parts.push(phase.clone().sin());
-        parts.push(phase.cos());
+    let bearing = Tensor::cat(vec![u, v], last) / r.clone();
+    // Every sine and cosine in one op: cos x = sin(x + pi/2), so the angles
+    // [dheading, dheading, 2 pi r / w_1, 2 pi r / w_1, ...] plus [0, pi/2, 0, pi/2, ...] go
+    // through one `sin` (a handful of ops instead of one pair per wavelength; the encoding is
+    // computed for every agent pair at every step).
+    let device = r.device();
+    let phase_scale: Vec<f32> = wavelengths
+        .iter()
+        .flat_map(|w| [(TAU / w) as f32; 2])
+        .collect();
+    let shift: Vec<f32> = (0..=wavelengths.len())
+        .flat_map(|_| [0.0, FRAC_PI_2 as f32])
+        .collect();
+    // A row broadcast along every axis but the last.
+    let row = |values: &[f32]| {
+        let mut shape = [1; D];
+        shape[last] = values.len();
+        Tensor::<1>::from_data(TensorData::new(values.to_vec(), [values.len()]), &device)
+            .reshape(shape)
+    };
+    let width = |w: usize| {
+        let mut dims = r.dims();
+        dims[last] = w;
+        dims
+    };
+    let mut angles = vec![dheading.expand(width(2))];
+    if !wavelengths.is_empty() {
+        angles.push(r.clone().expand(width(phase_scale.len())) * row(&phase_scale));
+    }
+    let trig = (Tensor::cat(angles, last) + row(&shift)).sin();
+    let mut parts = vec![bearing, trig.clone().narrow(last, 0, 2), r.log1p()];
+    if !wavelengths.is_empty() {
+        parts.push(trig.narrow(last, 2, phase_scale.len()));
     }
     Tensor::cat(parts, last)
 }
