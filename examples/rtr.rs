@@ -39,6 +39,7 @@ struct Args {
 }
 
 fn main() -> std::process::ExitCode {
+    rtr::allocator::tune_for_tensors();
     match run(Args::parse()) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {

@@ -10,6 +10,7 @@ use std::time::Instant;
 use rtr::sim2real::{Effect, GeneratorConfig, Sim2RealOptions, generate, identify};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
+    rtr::allocator::tune_for_tensors();
     let wanted: Vec<String> = std::env::args().skip(1).collect();
     #[allow(deprecated)]
     let device = burn::prelude::Device::ndarray();

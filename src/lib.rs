@@ -3,6 +3,7 @@
 //! Data flows one way: `data` and `map` feed `scene`; the simulator, model, training and
 //! evaluation build on scenes. See `README.md` for the tour.
 
+pub mod allocator;
 pub mod backend;
 pub mod data;
 pub mod driver;

@@ -466,6 +466,7 @@ struct RenderArgs {
 }
 
 fn main() -> ExitCode {
+    rtr::allocator::tune_for_tensors();
     match run(Cli::parse()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
