@@ -6,6 +6,7 @@ use burn::prelude::*;
 use burn::tensor::{Bool, Int, TensorData};
 
 use super::config::ModelConfig;
+use super::interaction::InteractionEdges;
 use super::relative_pose::{relative_pose, relative_pose_features};
 use crate::map::LANE_NODE_FEATURES;
 use crate::scene::{NeighbourTensors, SceneBatch};
@@ -49,6 +50,9 @@ pub struct AgentInput {
     pub pose: Tensor<3>,
     /// `[B, N]`: a real agent, on the road now.
     pub mask: Tensor<2, Bool>,
+    /// The HeteroGNN's agent-side edges on the batch's lane graph: built here once, so the
+    /// policy and the value network share them, and stored observations (PPO) keep them.
+    pub edges: InteractionEdges,
 }
 
 impl AgentInput {
@@ -93,10 +97,19 @@ impl AgentInput {
         let size = scaled_size(batch)
             .unsqueeze_dim::<4>(2)
             .expand([b, n, h, 2]);
+        let mask = batch.agent_mask.clone().bool_and(now.present.clone());
+        let edges = InteractionEdges::build(
+            &pose_now,
+            &mask,
+            &batch.lane_poses,
+            &batch.lane_mask,
+            config,
+        );
         Self {
             history: Tensor::cat(vec![motion, valid, size], 3),
             pose: pose_now,
-            mask: batch.agent_mask.clone().bool_and(now.present.clone()),
+            mask,
+            edges,
         }
     }
 

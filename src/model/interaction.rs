@@ -13,7 +13,7 @@ use burn::tensor::{Bool, Int};
 
 use super::aggregate::gather_neighbours;
 use super::config::ModelConfig;
-use super::input::{AgentInput, LaneInput};
+use super::input::LaneInput;
 use super::lane_encoder::{LANE_RELATIONS, lane_messages};
 use super::message::{EdgeMessage, NodeUpdate};
 use super::relative_pose::relative_pose;
@@ -86,11 +86,19 @@ impl Nearest {
 }
 
 impl InteractionEdges {
-    pub fn build(agents: &AgentInput, lanes: &LaneInput, config: &ModelConfig) -> Self {
-        let [b, n, _] = agents.pose.dims();
-        let l = lanes.nodes();
+    /// The edges of agents at `agent_pose` / `agent_mask` (`[B, N, 3]` / `[B, N]`) on the lane
+    /// graph at `lane_pose` / `lane_mask` (`[B, L, 3]` / `[B, L]`).
+    pub fn build(
+        agent_pose: &Tensor<3>,
+        agent_mask: &Tensor<2, Bool>,
+        lane_pose: &Tensor<3>,
+        lane_mask: &Tensor<2, Bool>,
+        config: &ModelConfig,
+    ) -> Self {
+        let [b, n, _] = agent_pose.dims();
+        let l = lane_mask.dims()[1];
         let wavelengths = &config.distance_wavelengths;
-        let device = agents.pose.device();
+        let device = agent_pose.device();
 
         // A [B, M] mask repeated along a new axis `dim` to `shape`.
         let spread = |mask: &Tensor<2, Bool>, dim: usize, shape: [usize; 3]| {
@@ -99,8 +107,7 @@ impl InteractionEdges {
 
         // Agent <- agent: receiver poses along dim 2 against sender poses along dim 1.
         let poses = |dim: usize| {
-            agents
-                .pose
+            agent_pose
                 .clone()
                 .unsqueeze_dim::<4>(dim)
                 .expand([b, n, n, 3])
@@ -110,35 +117,35 @@ impl InteractionEdges {
             .equal_elem(0)
             .unsqueeze_dim::<3>(0)
             .expand([b, n, n]);
-        let agent_agent_mask = spread(&agents.mask, 2, [b, n, n])
-            .bool_and(spread(&agents.mask, 1, [b, n, n]))
+        let agent_agent_mask = spread(agent_mask, 2, [b, n, n])
+            .bool_and(spread(agent_mask, 1, [b, n, n]))
             .bool_and(not_self);
 
         // Distances agent x lane node on detached positions (choosing edges is discrete).
         let xy = |pose: &Tensor<3>| pose.clone().detach().narrow(2, 0, 2);
-        let (a_xy, l_xy) = (xy(&agents.pose), xy(&lanes.pose));
+        let (a_xy, l_xy) = (xy(agent_pose), xy(lane_pose));
         let diff = a_xy.unsqueeze_dim::<4>(2).expand([b, n, l, 2])
             - l_xy.unsqueeze_dim::<4>(1).expand([b, n, l, 2]);
         let distance = diff.powi_scalar(2).sum_dim(3).reshape([b, n, l]).sqrt();
-        let lane_absent = spread(&lanes.mask.clone().bool_not(), 1, [b, n, l]);
-        let agent_absent = spread(&agents.mask.clone().bool_not(), 2, [b, n, l]);
+        let lane_absent = spread(&lane_mask.clone().bool_not(), 1, [b, n, l]);
+        let agent_absent = spread(&agent_mask.clone().bool_not(), 2, [b, n, l]);
 
         // Agent <- its closest lane nodes.
         let agent_lane = Nearest::pick(
             distance.clone().mask_fill(lane_absent, FAR),
             config.agent_lane_edges,
-            &agents.pose,
-            &lanes.pose,
-            &lanes.mask,
+            agent_pose,
+            lane_pose,
+            lane_mask,
             wavelengths,
         );
         // Lane node <- its closest agents within the radius.
         let lane_agent = Nearest::pick(
             distance.mask_fill(agent_absent, FAR).swap_dims(1, 2),
             config.lane_agent_edges,
-            &lanes.pose,
-            &agents.pose,
-            &agents.mask,
+            lane_pose,
+            agent_pose,
+            agent_mask,
             wavelengths,
         );
         let lane_agent_mask = lane_agent

@@ -11,7 +11,7 @@ use super::config::ModelConfig;
 use super::distribution::ActionDistribution;
 use super::history::HistoryEncoder;
 use super::input::{AgentInput, LaneInput, history_features};
-use super::interaction::{HeteroGnn, InteractionEdges, StaticLaneTerms};
+use super::interaction::{HeteroGnn, StaticLaneTerms};
 use super::lane_encoder::LaneGraphEncoder;
 use super::relative_pose::relative_pose_features;
 use super::rowwise::rowwise;
@@ -113,12 +113,11 @@ impl SceneEncoder {
         encoded: &EncodedLanes,
     ) -> Tensor<3> {
         let h_a = self.history.forward(agents.history.clone());
-        let edges = InteractionEdges::build(agents, lanes, &self.config);
         let fused = self.interaction.forward(
             h_a,
             encoded.features.clone(),
             lanes,
-            &edges,
+            &agents.edges,
             encoded.cached.as_ref(),
         );
         fused.mask_fill(agents.mask.clone().bool_not().unsqueeze_dim::<3>(2), 0.0)

@@ -1,6 +1,6 @@
 //! Closed-loop experience for PPO: the policy samples actions for every controlled agent (the
 //! heroes of long-tail scenes follow their scripts), and each step's log-probability and
-//! value are kept with the frames the policy saw, so the update can re-evaluate the same
+//! value are kept with the inputs the policy saw, so the update can re-evaluate the same
 //! observations under new parameters. Rewards, early termination and advantages are computed
 //! here, per agent (factorized) and per scene (the ablation).
 //!
@@ -70,9 +70,11 @@ impl std::ops::AddAssign for CollectStats {
 /// One collected part, ready for PPO updates.
 pub struct Experience {
     pub batch: SceneBatch,
-    /// Logged history (the first `history_frames`), then the rollout's frames 1..=T.
-    pub frames: Vec<Frame>,
-    pub history_frames: usize,
+    /// The batch's lane graph as the networks see it.
+    pub lanes: LaneInput,
+    /// Per step, what the policy saw (inputs and graph edges: fixed by the rollout, so the
+    /// update re-evaluates them under new parameters without rebuilding them).
+    pub observations: Vec<AgentInput>,
     pub steps: usize,
     /// Per step, `[B, N, 2]` raw sampled actions.
     pub actions: Vec<Tensor<3>>,
@@ -89,13 +91,6 @@ pub struct Experience {
     /// Per step, the frozen policy's distribution (KL-L).
     pub reference: Vec<ActionDistribution>,
     pub stats: CollectStats,
-}
-
-impl Experience {
-    /// The frames the policy saw at step `t`.
-    pub fn frames_at(&self, t: usize) -> &[Frame] {
-        &self.frames[..self.history_frames + t]
-    }
 }
 
 /// The frames of a finished rollout: the batch's logged history, then every simulated step.
@@ -157,6 +152,7 @@ struct Recorder<'n> {
     value_lanes: EncodedLanes,
     reference_lanes: Option<EncodedLanes>,
     noise: HostNoise,
+    observations: Vec<AgentInput>,
     actions: Vec<Tensor<3>>,
     log_probs: Vec<Tensor<2>>,
     values: Vec<Tensor<2>>,
@@ -174,6 +170,7 @@ impl<'n> Recorder<'n> {
             lanes,
             nets,
             noise,
+            observations: Vec::new(),
             actions: Vec::new(),
             log_probs: Vec::new(),
             values: Vec::new(),
@@ -209,6 +206,7 @@ impl Policy for Recorder<'_> {
                 .push(reference.forward(&agents, &self.lanes, lanes));
         }
         self.dists.push(dist);
+        self.observations.push(agents);
         self.actions.push(action.clone());
         Controls::from_stacked(action)
     }
@@ -397,7 +395,6 @@ pub fn collect(
     let boolean = |v: Vec<bool>, rows: usize| {
         Tensor::<3, Bool>::from_data(TensorData::new(v, [b, rows / b, steps]), device)
     };
-    let history_frames = batch.history_steps + 1;
     Ok(Experience {
         old_log_prob: Tensor::stack(recorder.log_probs, 2),
         alive: boolean(acting(&alive, agents), agents),
@@ -408,8 +405,8 @@ pub fn collect(
         scene_returns: float(scene_ret, b),
         actions: recorder.actions,
         reference: recorder.reference,
-        frames,
-        history_frames,
+        lanes: recorder.lanes,
+        observations: recorder.observations,
         steps,
         batch,
         stats,

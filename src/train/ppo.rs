@@ -11,7 +11,7 @@ use burn::tensor::Bool;
 
 use super::config::{PpoConfig, PpoVariant};
 use super::experience::Experience;
-use crate::model::{AgentInput, LaneInput, PolicyNetwork, ValueNetwork};
+use crate::model::{PolicyNetwork, ValueNetwork};
 
 /// A loss summed over masked entries, with the count it should be divided by.
 #[derive(Debug, Clone)]
@@ -106,18 +106,17 @@ pub fn ppo_terms(
     scale: AdvantageScale,
     with_kl: bool,
 ) -> PpoTerms {
-    let model = policy.config();
-    let lanes = LaneInput::from_batch(&exp.batch, model);
-    let policy_lanes = policy.encode_lanes(&lanes);
-    let value_lanes = value.encode_lanes(&lanes);
+    let lanes = &exp.lanes;
+    let policy_lanes = policy.encode_lanes(lanes);
+    let value_lanes = value.encode_lanes(lanes);
     let mut log_probs = Vec::with_capacity(exp.steps);
     let mut values = Vec::with_capacity(exp.steps);
     let mut kls = Vec::new();
     for t in 0..exp.steps {
-        let agents = AgentInput::from_frames(&exp.batch, exp.frames_at(t), model);
-        let dist = policy.forward(&agents, &lanes, &policy_lanes);
+        let agents = &exp.observations[t];
+        let dist = policy.forward(agents, lanes, &policy_lanes);
         log_probs.push(dist.log_prob(exp.actions[t].clone()));
-        values.push(value.forward(&agents, &lanes, &value_lanes));
+        values.push(value.forward(agents, lanes, &value_lanes));
         if with_kl && let Some(reference) = exp.reference.get(t) {
             kls.push(dist.kl(reference));
         }
