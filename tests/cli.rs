@@ -155,6 +155,15 @@ fn bench_sim_prints_its_figures_and_names_missing_backends() {
         assert!(!out.status.success());
         assert!(String::from_utf8_lossy(&out.stderr).contains("--features wgpu"));
     }
+    for bench in ["model", "train"] {
+        let out = rtr(&["bench", bench, "--devices", "0"]);
+        assert!(!out.status.success());
+        assert!(
+            String::from_utf8_lossy(&out.stderr).contains("--devices must be at least 1"),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
 }
 
 #[test]

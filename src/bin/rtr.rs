@@ -976,6 +976,7 @@ fn bench(command: BenchCommand) -> Result<()> {
             } else {
                 ModelConfig::default()
             };
+            let devices = device_count(args.devices, args.backend)?;
             serde_json::to_value(rtr::train::bench::bench_training(
                 &args.data.load()?,
                 args.backend,
@@ -983,7 +984,7 @@ fn bench(command: BenchCommand) -> Result<()> {
                 args.il_minibatch,
                 args.ppo_batch,
                 args.ppo_minibatch,
-                device_count(args.devices, args.backend)?,
+                devices,
             )?)
         }
         BenchCommand::Sim(args) => {
@@ -991,8 +992,8 @@ fn bench(command: BenchCommand) -> Result<()> {
             serde_json::to_value(rtr::sim::bench::run(map, args.backend, repetitions)?)
         }
         BenchCommand::Model(args) => {
-            let (map, repetitions) = bench_inputs(&args)?;
             let devices = device_count(args.devices, args.backend)?;
+            let (map, repetitions) = bench_inputs(&args)?;
             serde_json::to_value(rtr::model::bench::run(
                 map,
                 args.backend,

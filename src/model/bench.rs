@@ -8,8 +8,9 @@
 //! - both with the batch split over `devices` worker threads (each a contiguous share of the
 //!   scenes on its own device, as the trainer splits a minibatch), and on one device
 //!   (`*_one_device_ms`);
-//! - `peak_rss_mb`: the process's resident-memory high-water mark over the timed runs (Linux
-//!   `VmHWM`, reset before measuring; `null` elsewhere), `baseline_rss_mb` before them.
+//! - `peak_rss_mb`: the process's resident-memory high-water mark over the timed forward +
+//!   backward runs (Linux `VmHWM`, reset before them and measured first; `null` elsewhere),
+//!   `baseline_rss_mb` before them.
 
 use std::sync::Arc;
 
@@ -150,18 +151,21 @@ pub fn run(
     let policy_params = PolicyNetwork::new(&config, &device).num_params();
     let value_params = ValueNetwork::new(&config, &device).num_params();
 
-    let baseline_rss_mb = peak_rss_mb();
-    reset_peak_rss();
     let measure = |workers: usize, autodiff: bool| -> Result<f64> {
         let shards = shards(&refs, workers, backend, autodiff, &config)?;
         timed(repetitions, &shards, autodiff)
     };
-    let forward_one_device_s = measure(1, false)?;
-    let forward_backward_one_device_s = measure(1, true)?;
-    let forward_s = measure(devices, false)?;
+    // The training figure first, with the memory high-water mark of that run alone (freed
+    // buffers stay in the process's heap, so later runs would report the earlier ones' peak).
+    let baseline_rss_mb = peak_rss_mb();
+    reset_peak_rss();
     let meter = CoreMeter::start();
     let forward_backward_s = measure(devices, true)?;
     let cores_busy = meter.cores_busy();
+    let peak = peak_rss_mb();
+    let forward_s = measure(devices, false)?;
+    let forward_one_device_s = measure(1, false)?;
+    let forward_backward_one_device_s = measure(1, true)?;
     Ok(ModelBench {
         bench: "model",
         backend: backend.to_string(),
@@ -179,7 +183,7 @@ pub fn run(
         forward_backward_one_device_ms: 1e3 * forward_backward_one_device_s,
         cores_busy,
         baseline_rss_mb,
-        peak_rss_mb: peak_rss_mb(),
+        peak_rss_mb: peak,
         repetitions: repetitions.max(1),
     })
 }
