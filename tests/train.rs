@@ -260,6 +260,23 @@ fn a_killed_and_resumed_run_equals_an_uninterrupted_one() {
         resumed.len() > 1000 && resumed == whole,
         "parameters differ"
     );
+
+    // The worker count is how a run executes, not what it is: resuming with another is
+    // accepted, while another config is refused.
+    let other = tempfile::tempdir().expect("temp dir");
+    let mut one = config();
+    one.run.devices = Some(1);
+    train(one, other.path(), false, Some(1));
+    let mut two = config();
+    two.run.devices = Some(2);
+    assert_eq!(train(two, other.path(), true, None).len(), 6);
+    let mut changed = config();
+    changed.seed += 1;
+    let workers = rtr::train::session::devices(&changed).expect("devices");
+    let err = Trainer::new(changed, data(), workers, other.path(), true)
+        .err()
+        .expect("another config is refused");
+    assert!(err.to_string().contains("another config"), "{err}");
 }
 
 #[test]
