@@ -49,7 +49,7 @@ fn parse_options() -> Options {
     if all.last().is_some_and(|a| a == "--bench") {
         all.pop();
     }
-    let mut args = all.into_iter().peekable();
+    let mut args = all.into_iter();
     let (mut baseline, mut runs, mut benches) = (None, 5, vec!["model".to_string()]);
     let mut passthrough = Vec::new();
     while let Some(arg) = args.next() {

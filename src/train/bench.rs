@@ -41,7 +41,9 @@ pub struct TrainBenchReport {
     /// CPU time / wall time over the IL step and over the PPO iteration.
     pub il_cores_busy: Option<f64>,
     pub ppo_cores_busy: Option<f64>,
-    /// Resident-memory high-water mark of each run (MiB).
+    /// Resident-memory high-water mark of each run (MiB), reset at its start. The PPO figure
+    /// includes heap the allocator kept from the IL run before it (`crate::allocator`), so it
+    /// is an upper bound; the process's own maximum is the figure to compare across builds.
     pub il_peak_rss_mb: Option<f64>,
     pub ppo_peak_rss_mb: Option<f64>,
     pub threads: usize,

@@ -112,10 +112,10 @@ pub fn ppo_terms(
     let mut log_probs = Vec::with_capacity(exp.steps);
     let mut values = Vec::with_capacity(exp.steps);
     let mut kls = Vec::new();
-    for t in 0..exp.steps {
-        let agents = &exp.observations[t];
+    // One stored observation and action per simulated step.
+    for (t, (agents, action)) in exp.observations.iter().zip(&exp.actions).enumerate() {
         let dist = policy.forward(agents, lanes, &policy_lanes);
-        log_probs.push(dist.log_prob(exp.actions[t].clone()));
+        log_probs.push(dist.log_prob(action.clone()));
         values.push(value.forward(agents, lanes, &value_lanes));
         if with_kl && let Some(reference) = exp.reference.get(t) {
             kls.push(dist.kl(reference));
