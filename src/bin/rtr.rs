@@ -6,7 +6,7 @@ use std::process::ExitCode;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
 use rtr::backend::Backend;
-use rtr::data::{A9Dataset, SceneConfig, a9, summarize};
+use rtr::data::{A9Dataset, SceneConfig, a9, commonroad, summarize};
 use rtr::map::{LaneGraph, Map, ProceduralMap, to_xodr};
 use rtr::model::{ModelConfig, PolicyNetwork, ValueNetwork};
 use rtr::render::{RenderOptions, output_paths, render_map, render_scene};
@@ -94,6 +94,13 @@ struct EvalArgs {
     /// default sets now (about a minute).
     #[arg(long)]
     scenarios: Option<PathBuf>,
+    /// CommonRoad scenario files (.xml, .xml.gz) or folders of them: their recorded scenes
+    /// become the `commonroad` set, next to the sets of --set. Repeatable.
+    #[arg(long = "commonroad")]
+    commonroad: Vec<PathBuf>,
+    /// Speed limit (m/s) of CommonRoad lanes whose file gives none (default: 130 km/h).
+    #[arg(long, requires = "commonroad")]
+    commonroad_speed_limit: Option<f64>,
     /// Write results.json, table.md and the figures here.
     #[arg(long)]
     out: Option<PathBuf>,
@@ -415,6 +422,13 @@ enum DataCommand {
     Summary {
         #[command(flatten)]
         data: DataArgs,
+        /// Summarise these CommonRoad files or folders (repeatable) instead of the A9 data:
+        /// per file, its vehicles, duration, lanelets and scenes (or why it gives none).
+        #[arg(long = "commonroad")]
+        commonroad: Vec<PathBuf>,
+        /// Speed limit (m/s) of CommonRoad lanes whose file gives none (default: 130 km/h).
+        #[arg(long, requires = "commonroad")]
+        commonroad_speed_limit: Option<f64>,
         /// Print one JSON object instead of a table.
         #[arg(long)]
         json: bool,
@@ -490,8 +504,28 @@ fn main() -> ExitCode {
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Data {
-            command: DataCommand::Summary { data, json },
+            command:
+                DataCommand::Summary {
+                    data,
+                    commonroad,
+                    commonroad_speed_limit,
+                    json,
+                },
         } => {
+            if !commonroad.is_empty() {
+                let clips = commonroad::load_commonroad(&commonroad, commonroad_speed_limit)?;
+                let (_, summaries) =
+                    commonroad::commonroad_scenes(&clips, &SceneConfig::default())?;
+                if json {
+                    let text = serde_json::to_string_pretty(&summaries).map_err(|e| {
+                        Error::InvalidArgument(format!("cannot encode summary: {e}"))
+                    })?;
+                    println!("{text}");
+                } else {
+                    print!("{}", commonroad::describe_clips(&summaries));
+                }
+                return Ok(());
+            }
             let dataset = data.load()?;
             let summary = summarize(&dataset, &SceneConfig::default())?;
             if json {
@@ -547,15 +581,23 @@ fn eval(args: EvalArgs) -> Result<()> {
             "nothing to evaluate: pass --checkpoint DIR (repeatable) and/or --idm".into(),
         ));
     }
-    let sets = args
+    let mut sets = args
         .set
         .iter()
         .map(|s| EvalSet::parse(s.trim()))
         .collect::<Result<Vec<_>>>()?;
+    let commonroad = commonroad_set(&args.commonroad, args.commonroad_speed_limit)?;
     let device = args.backend.device(false)?;
     let entries = load_entries(&args.checkpoints, args.idm, &device)?;
     let dataset = args.data.load()?;
-    let scenes = load_sets(&dataset, args.scenarios.as_deref(), &sets)?;
+    sets.retain(|&s| s != EvalSet::CommonRoad || commonroad.is_none());
+    let mut scenes = load_sets(&dataset, args.scenarios.as_deref(), &sets)?;
+    let mut clip_summaries = Vec::new();
+    if let Some((set, summaries)) = commonroad {
+        sets.push(EvalSet::CommonRoad);
+        scenes.push(set);
+        clip_summaries = summaries;
+    }
     let config = EvalConfig {
         batch: args.batch,
         resamples: args.resamples,
@@ -571,10 +613,37 @@ fn eval(args: EvalArgs) -> Result<()> {
     progress.finish_and_clear();
     print!("{}", markdown_table(&results, &sets));
     if let Some(out) = &args.out {
-        let written = write_study(out, &entries, &results, &scenes, &device)?;
+        let mut written = write_study(out, &entries, &results, &scenes, &device)?;
+        if !clip_summaries.is_empty() {
+            let path = out.join("commonroad.json");
+            let text = serde_json::to_string_pretty(&clip_summaries)
+                .map_err(|e| Error::InvalidArgument(format!("cannot encode clips: {e}")))?;
+            rtr::io::atomic_write(&path, text.as_bytes())?;
+            written.push(path);
+        }
         println!("wrote {} files to {}", written.len(), out.display());
     }
     Ok(())
+}
+
+/// The `commonroad` eval set from the files and folders of `--commonroad`, with one line per
+/// file on stderr saying what it gave; `None` without paths.
+fn commonroad_set(
+    paths: &[PathBuf],
+    speed_limit: Option<f64>,
+) -> Result<Option<(rtr::eval::EvalScenes, Vec<commonroad::ClipSummary>)>> {
+    if paths.is_empty() {
+        return Ok(None);
+    }
+    let clips = commonroad::load_commonroad(paths, speed_limit)?;
+    let (scenes, summaries) = commonroad::commonroad_scenes(&clips, &SceneConfig::default())?;
+    eprint!("{}", commonroad::describe_clips(&summaries));
+    if scenes.is_empty() {
+        return Err(Error::InvalidArgument(
+            "the CommonRoad files yield no scene (each file's reason is printed above)".into(),
+        ));
+    }
+    Ok(Some((rtr::eval::EvalScenes::commonroad(scenes), summaries)))
 }
 
 fn downstream(args: DownstreamArgs) -> Result<()> {
@@ -1083,8 +1152,8 @@ fn map_command(command: MapCommand) -> Result<()> {
             let graph = LaneGraph::build(&map, a9::LANE_NODE_LENGTH);
             let summary = serde_json::json!({
                 "source": map.source(),
-                "roads": map.opendrive().roads.len(),
-                "junctions": map.opendrive().junctions.len(),
+                "roads": map.opendrive().map_or(0, |od| od.roads.len()),
+                "junctions": map.opendrive().map_or(0, |od| od.junctions.len()),
                 "road_length_m": map.road_length(),
                 "driving_lanes": map.driving_lane_count(),
                 "sampled_lanes": map.lanes().len(),
@@ -1108,7 +1177,10 @@ fn map_command(command: MapCommand) -> Result<()> {
         }
         MapCommand::Export { source, out } => {
             let map = source.load()?;
-            rtr::io::atomic_write(&out, to_xodr(map.opendrive()).as_bytes())?;
+            let od = map.opendrive().ok_or_else(|| {
+                Error::InvalidArgument(format!("{} is not an OpenDRIVE map", map.source()))
+            })?;
+            rtr::io::atomic_write(&out, to_xodr(od).as_bytes())?;
             println!("wrote {}", out.display());
             Ok(())
         }

@@ -3,6 +3,7 @@
 
 pub mod a9;
 pub mod automatum;
+pub mod commonroad;
 pub mod logged_infractions;
 pub mod recordings;
 pub mod scene_list;
@@ -19,4 +20,4 @@ pub use scene_list::{read_scene_list, write_scene_list};
 pub use summary::{DataSummary, summarize};
 pub use track::{AgentState, Track, TrackSample, VehicleClass};
 pub use traffic::{LaneTraffic, TrafficStatistics, VehicleSample, rank_from_right};
-pub use windows::{SceneConfig, SceneSplit, build_scenes};
+pub use windows::{SceneConfig, SceneSplit, build_all_scenes, build_scenes};

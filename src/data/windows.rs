@@ -115,29 +115,67 @@ pub fn build_scenes(
     config: &SceneConfig,
 ) -> Result<SceneSplit> {
     config.validate()?;
-    let history = config.history_steps()?;
-    let future = config.future_steps()?;
     let duration = recording.duration();
     let split_time = config.train_fraction * duration;
+    let cut = |part: &str, start: f64, end: f64| {
+        let id = |t0: f64| format!("{name}-{part}-t{t0:06.1}");
+        cut_span(recording, start, end, &id, &map, &lane_graph, config)
+    };
+    Ok(SceneSplit {
+        train: cut("train", 0.0, split_time)?,
+        test: cut("test", split_time, duration)?,
+        split_time,
+    })
+}
+
+/// Every scene of `recording` with no train/test split (short clips that are evaluated or
+/// trained on whole); scene ids are `{name}-t{t0}`.
+pub fn build_all_scenes(
+    recording: &Recording,
+    name: &str,
+    map: Arc<Map>,
+    lane_graph: Arc<LaneGraph>,
+    config: &SceneConfig,
+) -> Result<Vec<Scene>> {
+    config.validate()?;
+    let id = |t0: f64| format!("{name}-t{t0:06.1}");
+    cut_span(
+        recording,
+        0.0,
+        recording.duration(),
+        &id,
+        &map,
+        &lane_graph,
+        config,
+    )
+}
+
+/// The scenes whose windows lie wholly in `[start, end]` (s), current steps on a grid of
+/// `stride_s` from the span's start.
+fn cut_span(
+    recording: &Recording,
+    start: f64,
+    end: f64,
+    id: &dyn Fn(f64) -> String,
+    map: &Arc<Map>,
+    lane_graph: &Arc<LaneGraph>,
+    config: &SceneConfig,
+) -> Result<Vec<Scene>> {
+    let history = config.history_steps()?;
+    let future = config.future_steps()?;
     let before = history as f64 * config.dt;
     let after = future as f64 * config.dt;
-
-    let mut split = SceneSplit {
-        train: Vec::new(),
-        test: Vec::new(),
-        split_time,
-    };
-    for (part, start, end) in [("train", 0.0, split_time), ("test", split_time, duration)] {
-        // Current steps on a grid of `stride_s` from the part's start, window wholly inside.
-        let mut k = ((start + before) / config.stride_s - 1e-9).ceil().max(0.0) as usize;
-        loop {
-            let t0 = k as f64 * config.stride_s;
-            k += 1;
-            if t0 + after > end + 1e-9 {
-                break;
-            }
-            let scene = cut_window(recording, t0, history, future, config.dt).map(|agents| Scene {
-                id: format!("{name}-{part}-t{t0:06.1}"),
+    let mut scenes = Vec::new();
+    let mut k = ((start + before) / config.stride_s - 1e-9).ceil().max(0.0) as usize;
+    loop {
+        let t0 = k as f64 * config.stride_s;
+        k += 1;
+        if t0 + after > end + 1e-9 {
+            break;
+        }
+        if let Some(agents) = cut_window(recording, t0, history, future, config.dt) {
+            scenes.push(Scene {
+                id: id(t0),
                 t0,
                 dt: config.dt,
                 history_steps: history,
@@ -146,16 +184,9 @@ pub fn build_scenes(
                 lane_graph: lane_graph.clone(),
                 agents,
             });
-            if let Some(scene) = scene {
-                if part == "train" {
-                    split.train.push(scene);
-                } else {
-                    split.test.push(scene);
-                }
-            }
         }
     }
-    Ok(split)
+    Ok(scenes)
 }
 
 /// The agents of the window whose current step is at `t0`, or `None` if none is controllable.

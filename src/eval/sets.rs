@@ -20,16 +20,24 @@ pub enum EvalSet {
     Nominal,
     Longtail,
     Ood,
+    /// Recorded scenes from CommonRoad files (`rtr eval --commonroad PATH`).
+    CommonRoad,
 }
 
 impl EvalSet {
-    pub const ALL: [EvalSet; 3] = [EvalSet::Nominal, EvalSet::Longtail, EvalSet::Ood];
+    pub const ALL: [EvalSet; 4] = [
+        EvalSet::Nominal,
+        EvalSet::Longtail,
+        EvalSet::Ood,
+        EvalSet::CommonRoad,
+    ];
 
     pub fn name(self) -> &'static str {
         match self {
             EvalSet::Nominal => "nominal",
             EvalSet::Longtail => "longtail",
             EvalSet::Ood => "ood",
+            EvalSet::CommonRoad => "commonroad",
         }
     }
 
@@ -39,7 +47,7 @@ impl EvalSet {
             .find(|s| s.name() == text)
             .ok_or_else(|| {
                 Error::InvalidArgument(format!(
-                    "unknown scene set `{text}`: expected nominal, longtail or ood"
+                    "unknown scene set `{text}`: expected nominal, longtail, ood or commonroad"
                 ))
             })
     }
@@ -47,7 +55,7 @@ impl EvalSet {
     /// Real scenes whose controlled agents have logged futures (reconstruction and JSD
     /// metrics apply); the generated sets have none.
     pub fn has_logs(self) -> bool {
-        self == EvalSet::Nominal
+        matches!(self, EvalSet::Nominal | EvalSet::CommonRoad)
     }
 }
 
@@ -75,6 +83,15 @@ impl EvalScenes {
         }
     }
 
+    /// Recorded scenes from CommonRoad files.
+    pub fn commonroad(scenes: Vec<Scene>) -> Self {
+        Self {
+            set: EvalSet::CommonRoad,
+            scenes,
+            scenarios: Vec::new(),
+        }
+    }
+
     pub fn generated(set: EvalSet, scenarios: Vec<ConcreteScenario>) -> Result<Self> {
         let scenes = scenarios
             .iter()
@@ -96,7 +113,9 @@ pub fn load_sets(
     scenario_dir: Option<&Path>,
     sets: &[EvalSet],
 ) -> Result<Vec<EvalScenes>> {
-    let wants_generated = sets.iter().any(|s| !s.has_logs());
+    let wants_generated = sets
+        .iter()
+        .any(|s| matches!(s, EvalSet::Longtail | EvalSet::Ood));
     let mut generated = None;
     if wants_generated && scenario_dir.is_none() {
         let families = load_families(&builtin_families())?;
@@ -113,6 +132,13 @@ pub fn load_sets(
                 EvalSet::Nominal => return EvalScenes::nominal(dataset),
                 EvalSet::Longtail => ScenarioSet::Eval,
                 EvalSet::Ood => ScenarioSet::Ood,
+                EvalSet::CommonRoad => {
+                    return Err(Error::InvalidArgument(
+                        "the commonroad set is read from CommonRoad files: pass --commonroad \
+                         PATH (a file or a folder; repeatable)"
+                            .into(),
+                    ));
+                }
             };
             let scenarios = match (scenario_dir, &generated) {
                 (Some(dir), _) => load_scenario_dir(&dir.join(source.name()))?,

@@ -11,7 +11,7 @@ use std::path::Path;
 
 use super::lateral::{for_each_span, inner_mark, own_mark, section_end};
 use super::opendrive::{LaneType, OpenDrive, RoadMark, record_at};
-use super::query::RoadIndex;
+use super::query::{CenterlineIndex, RoadSurface, Surface};
 use super::reference_line::{RefPoint, eval_road};
 use super::topology;
 use super::xodr_parse::parse_xodr;
@@ -129,10 +129,9 @@ pub(super) struct RoadSamples {
 #[derive(Clone, Debug)]
 pub struct Map {
     source: String,
-    opendrive: OpenDrive,
+    pub(super) surface: Surface,
     pub(super) lanes: Vec<Lane>,
-    pub(super) roads: Vec<RoadSamples>,
-    pub(super) index: RoadIndex,
+    pub(super) centerlines: CenterlineIndex,
     bounds: ([f64; 2], [f64; 2]),
 }
 
@@ -169,7 +168,12 @@ impl Map {
             roads.push(samples);
         }
         let connected_ends = topology::connect(od, &mut lanes, source_name)?;
-        let index = RoadIndex::build(od, &roads, &lanes, &connected_ends);
+        let surface = Surface::Roads(RoadSurface::new(od.clone(), roads, &connected_ends));
+        Ok(Map::assemble(source_name, surface, lanes))
+    }
+
+    /// A map from its lanes (topology filled in) and the surface that answers on-road queries.
+    pub(super) fn assemble(source_name: &str, surface: Surface, lanes: Vec<Lane>) -> Map {
         let mut lo = [f64::INFINITY; 2];
         let mut hi = [f64::NEG_INFINITY; 2];
         for lane in &lanes {
@@ -183,14 +187,13 @@ impl Map {
         if lanes.is_empty() {
             (lo, hi) = ([0.0; 2], [0.0; 2]);
         }
-        Ok(Map {
+        Map {
             source: source_name.to_string(),
-            opendrive: od.clone(),
+            surface,
+            centerlines: CenterlineIndex::build(&lanes),
             lanes,
-            roads,
-            index,
             bounds: (lo, hi),
-        })
+        }
     }
 
     pub fn from_xodr_str(text: &str, source_name: &str) -> Result<Map> {
@@ -206,9 +209,18 @@ impl Map {
         &self.lanes
     }
 
-    /// Sum of the road lengths (m).
+    /// Sum of the road lengths (m): the OpenDRIVE reference lines, or for a lanelet map the
+    /// lanes with no same-direction neighbour on their left (one per carriageway piece).
     pub fn road_length(&self) -> f64 {
-        self.opendrive.roads.iter().map(|r| r.length).sum()
+        match &self.surface {
+            Surface::Roads(r) => r.opendrive.roads.iter().map(|r| r.length).sum(),
+            Surface::Lanelets(_) => self
+                .lanes
+                .iter()
+                .filter(|l| l.is_graph_lane() && l.left_neighbour.is_none())
+                .map(Lane::length)
+                .sum(),
+        }
     }
 
     /// Driving lanes, each (road, lane id) counted once however many sections it spans.
@@ -240,8 +252,12 @@ impl Map {
         &self.source
     }
 
-    pub fn opendrive(&self) -> &OpenDrive {
-        &self.opendrive
+    /// The OpenDRIVE network the map was sampled from; `None` for a lanelet map (CommonRoad).
+    pub fn opendrive(&self) -> Option<&OpenDrive> {
+        match &self.surface {
+            Surface::Roads(r) => Some(&r.opendrive),
+            Surface::Lanelets(_) => None,
+        }
     }
 }
 

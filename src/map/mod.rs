@@ -2,9 +2,12 @@
 //! into polylines with topology, on-road and lane queries, and the paper's lane graph.
 //!
 //! Real and generated maps share one path: [`OpenDrive`] -> [`Map::from_opendrive`] ->
-//! [`LaneGraph::build`].
+//! [`LaneGraph::build`]. Lanelet networks (CommonRoad) enter through [`Map::from_lanelets`]
+//! into the same [`Lane`]s and lane graph.
 
 mod lane_graph;
+mod lanelet;
+mod lanelet_surface;
 mod lanes;
 mod lateral;
 mod opendrive;
@@ -29,6 +32,8 @@ pub use lane_graph::{
     LANE_NODE_FEATURE_NAMES, LANE_NODE_FEATURES, LaneGraph, LaneNode, NeighbourTable,
     mark_category, neighbour_table,
 };
+pub use lanelet::{AdjacentLanelet, Lanelet};
+pub use lanelet_surface::LANELET_SHOULDER_WIDTH;
 pub use lanes::{DEFAULT_SPEED_LIMIT, Lane, MAX_ROAD_LENGTH, Map, SAMPLE_SPACING};
 pub use opendrive::Lane as OdLane;
 pub use opendrive::{

@@ -1,7 +1,9 @@
 //! Geometric queries on a [`Map`]: is a point or a box on the road, and where is a pose
 //! relative to the nearest lane.
 //!
-//! parry2d bounding-volume hierarchies keep every query logarithmic in the map size:
+//! Lanelet maps answer the on-road query from their lane polygons (`lanelet_surface.rs`);
+//! OpenDRIVE maps as below. parry2d bounding-volume hierarchies keep every query logarithmic
+//! in the map size:
 //! - "corridors": one box per 20 m chunk of reference line, grown by the road's lateral reach
 //!   there, plus one box per open road end covering the strip beyond it. The boxes containing
 //!   a point name its candidate roads.
@@ -15,6 +17,7 @@ use parry2d::math::Vector;
 use parry2d::partitioning::{Bvh, BvhBuildStrategy};
 use parry2d::query::PointQuery;
 
+use super::lanelet_surface::LaneletSurface;
 use super::lanes::{Lane, Map, RoadSamples};
 use super::lateral::{for_each_span, section_index};
 use super::opendrive::{OpenDrive, Road};
@@ -97,18 +100,39 @@ enum Leaf {
     OpenEnd { road: usize, at_end: bool },
 }
 
+/// What answers "is this point on the road": an OpenDRIVE road network (reference lines and
+/// lateral lane spans) or a lanelet network (lane polygons).
 #[derive(Clone, Debug)]
-pub(super) struct RoadIndex {
+pub(super) enum Surface {
+    Roads(RoadSurface),
+    Lanelets(LaneletSurface),
+}
+
+/// An OpenDRIVE network with its sampled reference lines and their spatial index.
+#[derive(Clone, Debug)]
+pub(super) struct RoadSurface {
+    pub opendrive: OpenDrive,
+    pub roads: Vec<RoadSamples>,
+    index: RoadIndex,
+}
+
+#[derive(Clone, Debug)]
+struct RoadIndex {
     corridor: Bvh,
     leaves: Vec<Leaf>,
     /// Per road: its reference-line segments.
     segments: Vec<Bvh>,
+}
+
+/// Graph-lane centerline segments, for [`Map::lane_projection`] on either kind of map.
+#[derive(Clone, Debug)]
+pub(super) struct CenterlineIndex {
     centerlines: Bvh,
     /// (lane, segment) of each centerline leaf.
     center_segments: Vec<(usize, usize)>,
 }
 
-fn v(p: [f64; 2]) -> Vector {
+pub(super) fn v(p: [f64; 2]) -> Vector {
     Vector::new(p[0], p[1])
 }
 
@@ -126,7 +150,7 @@ fn reach(road: &Road, s: f64) -> f64 {
 
 /// Foot of p on the line through a-b: the unclamped parameter (0 at a, 1 at b) and the
 /// distance from p to the closest point of the segment.
-fn segment_foot(a: [f64; 2], b: [f64; 2], p: [f64; 2]) -> (f64, f64) {
+pub(super) fn segment_foot(a: [f64; 2], b: [f64; 2], p: [f64; 2]) -> (f64, f64) {
     let d = [b[0] - a[0], b[1] - a[1]];
     let len2 = d[0] * d[0] + d[1] * d[1];
     let u = if len2 > 0.0 {
@@ -140,17 +164,29 @@ fn segment_foot(a: [f64; 2], b: [f64; 2], p: [f64; 2]) -> (f64, f64) {
 }
 
 /// Signed side of p relative to the directed segment a-b (positive on the left).
-fn side(a: [f64; 2], b: [f64; 2], p: [f64; 2]) -> f64 {
+pub(super) fn side(a: [f64; 2], b: [f64; 2], p: [f64; 2]) -> f64 {
     (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0])
 }
 
-impl RoadIndex {
-    pub(super) fn build(
-        od: &OpenDrive,
-        roads: &[RoadSamples],
-        lanes: &[Lane],
+impl RoadSurface {
+    /// Indexes `roads` (the sampled reference lines of `opendrive`); `connected` says, per
+    /// road, whether its start and end connect to anything.
+    pub(super) fn new(
+        opendrive: OpenDrive,
+        roads: Vec<RoadSamples>,
         connected: &[[bool; 2]],
     ) -> Self {
+        let index = RoadIndex::build(&opendrive, &roads, connected);
+        RoadSurface {
+            opendrive,
+            roads,
+            index,
+        }
+    }
+}
+
+impl RoadIndex {
+    fn build(od: &OpenDrive, roads: &[RoadSamples], connected: &[[bool; 2]]) -> Self {
         let mut boxes = Vec::new();
         let mut leaves = Vec::new();
         let mut segments = Vec::with_capacity(od.roads.len());
@@ -188,7 +224,16 @@ impl RoadIndex {
             }
         }
         let corridor = Bvh::from_leaves(BvhBuildStrategy::Binned, &boxes);
+        RoadIndex {
+            corridor,
+            leaves,
+            segments,
+        }
+    }
+}
 
+impl CenterlineIndex {
+    pub(super) fn build(lanes: &[Lane]) -> Self {
         let mut seg_boxes = Vec::new();
         let mut center_segments = Vec::new();
         for (i, lane) in lanes.iter().enumerate().filter(|(_, l)| l.is_graph_lane()) {
@@ -198,10 +243,7 @@ impl RoadIndex {
             }
         }
         let centerlines = Bvh::from_leaves(BvhBuildStrategy::Binned, &seg_boxes);
-        RoadIndex {
-            corridor,
-            leaves,
-            segments,
+        CenterlineIndex {
             centerlines,
             center_segments,
         }
@@ -214,7 +256,21 @@ impl Map {
         if !(p[0].is_finite() && p[1].is_finite()) {
             return PointLocation::OffRoad;
         }
-        let od = self.opendrive();
+        match &self.surface {
+            Surface::Roads(roads) => roads.point_location(p),
+            Surface::Lanelets(lanelets) => lanelets.point_location(p),
+        }
+    }
+
+    /// Classifies a vehicle footprint by its outline points, [`BOX_OUTLINE_SPACING`] apart.
+    pub fn box_on_road(&self, b: &OrientedBox) -> BoxOnRoad {
+        classify_outline(b, |p| self.point_location(p))
+    }
+}
+
+impl RoadSurface {
+    fn point_location(&self, p: [f64; 2]) -> PointLocation {
+        let od = &self.opendrive;
         let mut candidates: Vec<usize> = Vec::new();
         let mut beyond = false;
         let idx = &self.index;
@@ -287,16 +343,13 @@ impl Map {
         let rel = [p[0] - e.x, p[1] - e.y];
         let along = (rel[0] * cos + rel[1] * sin) * if at_end { 1.0 } else { -1.0 };
         let t = -rel[0] * sin + rel[1] * cos;
-        let od_road = &self.opendrive().roads[road];
+        let od_road = &self.opendrive.roads[road];
         let s = if at_end { od_road.length } else { 0.0 };
         along > 0.0 && along <= BEYOND_END_RANGE && self.on_drivable(od_road, s, t)
     }
+}
 
-    /// Classifies a vehicle footprint by its outline points, [`BOX_OUTLINE_SPACING`] apart.
-    pub fn box_on_road(&self, b: &OrientedBox) -> BoxOnRoad {
-        classify_outline(b, |p| self.point_location(p))
-    }
-
+impl Map {
     /// The nearest graph-lane centerline to `p`, preferring lanes whose travel direction is
     /// within 90 degrees of `heading`. `None` when the map has no graph lanes.
     pub fn lane_projection(&self, p: [f64; 2], heading: f64) -> Option<LaneProjection> {
@@ -306,7 +359,7 @@ impl Map {
         // Any aligned lane beats any opposed one; the penalty keeps the AABB distance a lower
         // bound of the cost, as the best-first search needs.
         const OPPOSED_PENALTY: f64 = 1e9;
-        let idx = &self.index;
+        let idx = &self.centerlines;
         let (dir_x, dir_y) = (heading.cos(), heading.sin());
         let (leaf, _) = idx.centerlines.find_best(
             f64::MAX,

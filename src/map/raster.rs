@@ -4,9 +4,9 @@
 //! The exact query is evaluated once at every grid corner. A point in a cell whose four
 //! corners agree takes that answer; a point in a cell whose corners disagree (a cell that a
 //! lane edge or road end crosses) falls back to the exact query, as does a point outside the
-//! grid. So the answer equals the exact one except where a drivable feature narrower than a
-//! cell fits entirely between corners (the last centimetres of a tapering lane), which the
-//! default 0.25 m cell makes negligible.
+//! grid. So the answer equals the exact one except where a feature narrower than a cell fits
+//! entirely between corners (the last centimetres of a tapering lane; on a lanelet map, the
+//! tip of a gap between two shoulder strips), which the default 0.25 m cell makes negligible.
 
 use super::lanes::Map;
 use super::query::{BEYOND_END_RANGE, BoxOnRoad, PointLocation, classify_outline};

@@ -91,7 +91,7 @@ fn a9_length_lanes_and_directions() {
         assert!((lane.speed_limit - 100.0 / 3.6).abs() < 1e-12);
         assert!(lane.s.windows(2).all(|w| w[1] > w[0]));
         // Lanes are parallel offset curves of the arc: length = L (1 - t k).
-        let p = eval_road(&map.opendrive().roads[0], lane.road_s[0]);
+        let p = eval_road(&map.opendrive().unwrap().roads[0], lane.road_s[0]);
         let c = lane.centerline[0];
         let t = (c[1] - p.y) * p.hdg.cos() - (c[0] - p.x) * p.hdg.sin();
         let expect = 266.281_170_003_393 * (1.0 - t * k);
@@ -150,7 +150,7 @@ fn a9_neighbours_stay_within_a_carriageway() {
 #[test]
 fn a9_box_queries() {
     let map = a9();
-    let road = &map.opendrive().roads[0];
+    let road = &map.opendrive().unwrap().roads[0];
     let at = |s: f64, t: f64| eval_road(road, s).offset(t);
     let hdg = eval_road(road, 100.0).hdg;
     // Lane -3 is at t in [-10.65, -6.95]; the median (lanes 1 and -1) at [-3.05, 3.05].
@@ -330,7 +330,7 @@ fn lane_projection_signs_on_both_carriageways() {
 #[test]
 fn queries_are_fast() {
     let map = a9();
-    let road = &map.opendrive().roads[0];
+    let road = &map.opendrive().unwrap().roads[0];
     let start = std::time::Instant::now();
     let mut on = 0;
     let n = 2000;
@@ -419,7 +419,7 @@ fn a9_road_polygon_has_the_drivable_area_and_agrees_with_point_queries() {
         }
         c
     };
-    let road = &map.opendrive().roads[0];
+    let road = &map.opendrive().unwrap().roads[0];
     let mut agreed = 0;
     for i in 0..400 {
         let s = 5.0 + (i % 40) as f64 * 6.4;

@@ -91,9 +91,14 @@ pub struct Placement {
     pub lane: usize,
 }
 
+/// The roads of a procedural map (none for a lanelet map, which has no main route).
+fn procedural_roads(map: &Map) -> &[crate::map::Road] {
+    map.opendrive().map_or(&[], |od| &od.roads)
+}
+
 /// The main road as (road id, station where it starts) pieces.
 fn main_route(map: &Map) -> Vec<(String, f64)> {
-    let roads = &map.opendrive().roads;
+    let roads = procedural_roads(map);
     let length = |id: &str| roads.iter().find(|r| r.id == id).map(|r| r.length);
     if length("0").is_some() {
         return vec![("0".into(), 0.0)];
@@ -111,7 +116,7 @@ fn main_route(map: &Map) -> Vec<(String, f64)> {
 
 /// Main-road length (m).
 pub fn main_road_length(map: &Map) -> f64 {
-    let roads = &map.opendrive().roads;
+    let roads = procedural_roads(map);
     main_route(map)
         .last()
         .and_then(|(id, start)| roads.iter().find(|r| &r.id == id).map(|r| start + r.length))
@@ -122,7 +127,7 @@ pub fn main_road_length(map: &Map) -> f64 {
 pub fn place(map: &Map, lane: LaneRef, station: f64) -> Option<Placement> {
     let (road_id, road_s) = match lane {
         LaneRef::Ramp => {
-            let roads = &map.opendrive().roads;
+            let roads = procedural_roads(map);
             let ramp = roads.iter().find(|r| r.id == "2")?;
             let merge = roads.iter().find(|r| r.id == "1")?.length;
             (ramp.id.clone(), ramp.length - (merge - station))

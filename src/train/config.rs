@@ -290,6 +290,26 @@ pub struct DataConfig {
     pub curated: Option<PathBuf>,
     /// Cap on rollout steps (long-tail scenarios run 10-14 s); `None` = each scene's horizon.
     pub max_rollout_steps: Option<usize>,
+    /// Weight of the A9 training split among the recorded (nominal) sources.
+    pub a9_weight: f64,
+    /// More recorded sources: CommonRoad files or folders, each with its weight. A nominal
+    /// draw picks a source with probability proportional to its weight, then a scene of it
+    /// uniformly. Empty (the default): A9 only.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub commonroad: Vec<CommonRoadSource>,
+}
+
+/// CommonRoad scenario files (a file or a folder of `.xml` / `.xml.gz`) as a source of
+/// recorded training scenes; every window of every file is used.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CommonRoadSource {
+    /// Relative to the run file.
+    pub path: PathBuf,
+    pub weight: f64,
+    /// Speed limit (m/s) of lanes the files give none; default 130 km/h.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub speed_limit: Option<f64>,
 }
 
 impl Default for DataConfig {
@@ -301,6 +321,8 @@ impl Default for DataConfig {
             longtail_limit: None,
             curated: None,
             max_rollout_steps: None,
+            a9_weight: 1.0,
+            commonroad: Vec::new(),
         }
     }
 }
@@ -372,6 +394,11 @@ impl TrainConfig {
         {
             *curated = path.parent().unwrap_or(Path::new(".")).join(&*curated);
         }
+        for source in &mut config.data.commonroad {
+            if source.path.is_relative() {
+                source.path = path.parent().unwrap_or(Path::new(".")).join(&source.path);
+            }
+        }
         Ok(config)
     }
 
@@ -414,6 +441,26 @@ impl TrainConfig {
                 "data.curated",
                 "curated scenes replace the long-tail set as the alpha share; drop data.longtail_dir \
                  (or the --scenarios flag)",
+            );
+        }
+        let weight = |w: f64| w.is_finite() && w >= 0.0;
+        if !weight(self.data.a9_weight) {
+            return fail("data.a9_weight", "expected a finite weight >= 0");
+        }
+        if self.data.commonroad.iter().any(|c| !weight(c.weight)) {
+            return fail("data.commonroad.weight", "expected a finite weight >= 0");
+        }
+        let commonroad_weight: f64 = self.data.commonroad.iter().map(|c| c.weight).sum();
+        if self.data.a9_weight + commonroad_weight <= 0.0 {
+            return fail(
+                "data.a9_weight",
+                "the recorded sources' weights (A9 and data.commonroad) sum to 0",
+            );
+        }
+        if self.data.curated.is_some() && !self.data.commonroad.is_empty() {
+            return fail(
+                "data.curated",
+                "curated scenes come from the A9 split; drop data.commonroad or data.curated",
             );
         }
         if !(self.lambda.is_finite() && self.lambda >= 0.0) {

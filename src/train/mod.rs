@@ -30,8 +30,8 @@ pub mod trainer;
 
 pub use checkpoint::{Checkpoint, LoopState, load_policy};
 pub use config::{
-    DataConfig, ImitationConfig, Method, OptimizerConfig, PpoConfig, PpoVariant, ReferenceConfig,
-    RunConfig, ShapingConfig, TrainConfig,
+    CommonRoadSource, DataConfig, ImitationConfig, Method, OptimizerConfig, PpoConfig, PpoVariant,
+    ReferenceConfig, RunConfig, ShapingConfig, TrainConfig,
 };
 pub use curves::CurveRow;
 pub use sources::{InitialState, Part, TrainingData};

@@ -5,11 +5,13 @@
 //! kind, same window), since long-tail families run longer than the nominal 6 s window.
 
 use std::collections::HashMap;
+use std::ops::Range;
 use std::path::Path;
 
 use rand::Rng;
 
 use super::config::DataConfig;
+use crate::data::commonroad::{commonroad_scenes, load_commonroad};
 use crate::data::{A9Dataset, SceneConfig, TrafficStatistics, read_scene_list};
 use crate::error::{Error, Result};
 use crate::scenario::{
@@ -20,8 +22,11 @@ use crate::scene::Scene;
 
 /// Everything a run samples its initial states from.
 pub struct TrainingData {
-    /// Real A9 training scenes (they have logs: imitation targets).
+    /// Real training scenes (they have logs: imitation targets): the A9 training split, then
+    /// the scenes of each `data.commonroad` source.
     pub nominal: Vec<Scene>,
+    /// The recorded sources in `nominal`: (index range, weight). One entry (A9) by default.
+    pub nominal_sources: Vec<(Range<usize>, f64)>,
     /// Long-tail training scenarios and their scenes (no logs of the policy's agents beyond the
     /// reference IDM run, so no imitation loss is taken on them).
     pub longtail: Vec<(ConcreteScenario, Scene)>,
@@ -67,6 +72,21 @@ impl TrainingData {
                 "data.nominal_limit leaves no nominal training scene".into(),
             ));
         }
+        let mut nominal_sources = vec![(0..nominal.len(), config.a9_weight)];
+        for source in &config.commonroad {
+            let clips = load_commonroad(std::slice::from_ref(&source.path), source.speed_limit)?;
+            let (scenes, _) = commonroad_scenes(&clips, &SceneConfig::default())?;
+            if scenes.is_empty() {
+                return Err(Error::invalid(
+                    source.path.display().to_string(),
+                    "data.commonroad",
+                    "yields no scene (`rtr data summary --commonroad PATH` says why per file)",
+                ));
+            }
+            let start = nominal.len();
+            nominal.extend(scenes);
+            nominal_sources.push((start..nominal.len(), source.weight));
+        }
         let curated = match &config.curated {
             Some(path) => curated_indices(&nominal, path)?,
             None => Vec::new(),
@@ -100,13 +120,15 @@ impl TrainingData {
             .collect::<Result<Vec<_>>>()?;
         Ok(Self {
             nominal,
+            nominal_sources,
             longtail,
             curated,
         })
     }
 
     /// `count` i.i.d. initial states: from the alpha share (curated scenes if any, else the
-    /// long-tail set) with probability `alpha`, else nominal; each set uniform.
+    /// long-tail set) with probability `alpha`, else nominal (a recorded source by weight,
+    /// then uniform within it); each set uniform.
     pub fn sample(&self, rng: &mut impl Rng, count: usize, alpha: f64) -> Vec<InitialState> {
         (0..count)
             .map(|_| {
@@ -115,10 +137,31 @@ impl TrainingData {
                 } else if !self.longtail.is_empty() && rng.random::<f64>() < alpha {
                     InitialState::LongTail(rng.random_range(0..self.longtail.len()))
                 } else {
-                    InitialState::Nominal(rng.random_range(0..self.nominal.len()))
+                    InitialState::Nominal(self.sample_nominal(rng))
                 }
             })
             .collect()
+    }
+
+    /// A nominal scene index. With one source this is the draw rtr always made (uniform over
+    /// `nominal`), so A9-only run files reproduce.
+    fn sample_nominal(&self, rng: &mut impl Rng) -> usize {
+        if self.nominal_sources.len() <= 1 {
+            return rng.random_range(0..self.nominal.len());
+        }
+        let total: f64 = self.nominal_sources.iter().map(|(_, w)| w).sum();
+        let mut pick = rng.random::<f64>() * total;
+        let mut chosen = &self.nominal_sources[0].0;
+        for (range, weight) in &self.nominal_sources {
+            if *weight > 0.0 && !range.is_empty() {
+                chosen = range;
+                if pick < *weight {
+                    break;
+                }
+            }
+            pick -= weight;
+        }
+        rng.random_range(chosen.clone())
     }
 
     /// Groups `states` into batchable parts (nominal first, then long-tail by window length),
