@@ -586,3 +586,55 @@ fn the_simulators_road_raster_agrees_with_the_exact_lanelet_query() {
     );
     assert!(differ * 10_000 <= n, "{differ} of {n} points differ");
 }
+
+#[test]
+fn lanelets_that_cannot_be_a_road_are_errors() {
+    // Left and right bound swapped on lanelet 1.
+    let swapped = template(10).replacen(
+        "<leftBound><point><x>0</x><y>3.5</y></point><point><x>100</x><y>3.5</y></point></leftBound>\n    <rightBound><point><x>0</x><y>0</y></point><point><x>100</x><y>0</y></point></rightBound>",
+        "<leftBound><point><x>0</x><y>0</y></point><point><x>100</x><y>0</y></point></leftBound>\n    <rightBound><point><x>0</x><y>3.5</y></point><point><x>100</x><y>3.5</y></point></rightBound>",
+        1,
+    );
+    let err = load_error(&swapped);
+    assert!(
+        err.contains("lanelet 1") && err.contains("swapped"),
+        "{err}"
+    );
+    // A right bound 1e6 m away (would be sampled into millions of points).
+    let err =
+        load_error(&template(10).replace("<x>100</x><y>-3.5</y>", "<x>1000000</x><y>-3.5</y>"));
+    assert!(
+        err.contains("lanelet 2") && err.contains("at most"),
+        "{err}"
+    );
+    // Nothing drivable.
+    let err = load_error(&template(10).replace("highway", "sidewalk"));
+    assert!(err.contains("no drivable lanelet"), "{err}");
+}
+
+#[test]
+fn a_clip_that_starts_late_starts_at_time_zero_and_two_clips_with_one_id_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    // The same 8.1 s clip, its steps shifted by 5000.
+    let mut text = template(81);
+    for k in (0..81).rev() {
+        text = text.replace(
+            &format!("<time><exact>{k}</exact>"),
+            &format!("<time><exact>{}</exact>", k + 5000),
+        );
+    }
+    let late = write(&dir, "late.xml", &text);
+    let clip = CommonRoadClip::load(&late, DEFAULT_SPEED_LIMIT).unwrap();
+    assert_eq!(clip.recording.tracks[0].samples[0].t, 0.0);
+    assert!((clip.recording.duration() - 8.0).abs() < 1e-9);
+    assert_eq!(clip.scenes(&SceneConfig::default()).unwrap().len(), 1);
+    let again = write(&dir, "again.xml", &template(81));
+    let clips = load_commonroad(&[late, again.clone()], None).unwrap();
+    let err = commonroad_scenes(&clips, &SceneConfig::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("again.xml") && err.contains("ZAM_Test-1_1_T-1"),
+        "{err}"
+    );
+}

@@ -6,12 +6,16 @@
 
 use std::collections::HashMap;
 
-use super::lanelet_surface::LaneletSurface;
+use super::lanelet_surface::{Beside, LaneletSurface};
 use super::lanes::{Lane, MAX_ROAD_LENGTH, Map, SAMPLE_SPACING};
 use super::opendrive::{LaneType, RoadMark};
 use super::query::Surface;
 use crate::geometry::wrap_angle;
 use crate::{Error, Result};
+
+/// Widest lanelet accepted (m): a corrupt bound far from its partner would otherwise be
+/// sampled into millions of points.
+pub const MAX_LANE_WIDTH: f64 = 20.0;
 
 /// A lanelet's neighbour across its left or right boundary.
 #[derive(Clone, Debug, PartialEq)]
@@ -57,7 +61,11 @@ impl Map {
             .map(|(k, l)| sample_lanelet(k, l, default_speed_limit))
             .collect();
         connect(lanelets, &index, &mut lanes);
-        let surface = Surface::Lanelets(LaneletSurface::build(&lanes));
+        let beside: Vec<[Beside; 2]> = lanelets
+            .iter()
+            .map(|l| [&l.adjacent_left, &l.adjacent_right].map(|a| beside(a, lanelets, &index)))
+            .collect();
+        let surface = Surface::Lanelets(LaneletSurface::build(&lanes, &beside));
         Ok(Map::assemble(source_name, surface, lanes))
     }
 }
@@ -94,18 +102,14 @@ fn check_lanelets<'a>(lanelets: &'a [Lanelet], source: &str) -> Result<HashMap<&
                 format!("bound point ({}, {}) is not finite", p[0], p[1]),
             ));
         }
-        let length: f64 = l
-            .left_bound
-            .windows(2)
-            .map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]))
-            .sum();
-        if length > MAX_ROAD_LENGTH {
-            return Err(Error::invalid(
-                source,
-                place,
-                format!("left bound is {length:.0} m long, at most {MAX_ROAD_LENGTH} m expected"),
-            ));
-        }
+        check_shape(l, source, &place)?;
+    }
+    if !lanelets.iter().any(|l| l.kind.is_drivable()) {
+        return Err(Error::invalid(
+            source,
+            "lanelet network",
+            "has no drivable lanelet (driving, ramp or shoulder): nothing to drive on",
+        ));
     }
     for l in lanelets {
         let adjacent = l.adjacent_left.iter().chain(&l.adjacent_right);
@@ -126,6 +130,58 @@ fn check_lanelets<'a>(lanelets: &'a [Lanelet], source: &str) -> Result<HashMap<&
         }
     }
     Ok(index)
+}
+
+/// What the sampler and the road surface rely on: bounds of sane length, a lane of sane
+/// width that has some length, and the left bound on the left of the travel direction.
+fn check_shape(l: &Lanelet, source: &str, place: &str) -> Result<()> {
+    let length =
+        |bound: &[[f64; 2]]| -> f64 { bound.windows(2).map(|w| distance(w[0], w[1])).sum() };
+    let longest = length(&l.left_bound).max(length(&l.right_bound));
+    if longest > MAX_ROAD_LENGTH {
+        return Err(Error::invalid(
+            source,
+            place,
+            format!("a bound is {longest:.0} m long, at most {MAX_ROAD_LENGTH} m expected"),
+        ));
+    }
+    let widest = l
+        .left_bound
+        .iter()
+        .zip(&l.right_bound)
+        .map(|(&a, &b)| distance(a, b))
+        .fold(0.0, f64::max);
+    if widest > MAX_LANE_WIDTH {
+        return Err(Error::invalid(
+            source,
+            place,
+            format!("the bounds are {widest:.1} m apart, at most {MAX_LANE_WIDTH} m expected"),
+        ));
+    }
+    let center: Vec<[f64; 2]> = l
+        .left_bound
+        .iter()
+        .zip(&l.right_bound)
+        .map(|(&a, &b)| midpoint(a, b))
+        .collect();
+    if length(&center) < 1e-6 {
+        return Err(Error::invalid(source, place, "has zero length"));
+    }
+    // Signed side of the left bound, summed along the lanelet: positive when it is on the left.
+    let left_side: f64 = (1..center.len())
+        .map(|j| {
+            let (a, b, p) = (center[j - 1], center[j], l.left_bound[j]);
+            (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0])
+        })
+        .sum();
+    if left_side < 0.0 {
+        return Err(Error::invalid(
+            source,
+            place,
+            "the left bound lies on the right of the travel direction (bounds swapped?)",
+        ));
+    }
+    Ok(())
 }
 
 /// The lanelet's bounds, each segment split into pieces of at most [`SAMPLE_SPACING`], as a
@@ -206,6 +262,19 @@ fn centerline_headings(center: &[[f64; 2]], left: &[[f64; 2]], right: &[[f64; 2]
             wrap_angle(heading)
         })
         .collect()
+}
+
+/// What the file puts beyond one bound of a lanelet.
+fn beside(
+    adjacent: &Option<AdjacentLanelet>,
+    lanelets: &[Lanelet],
+    index: &HashMap<&str, usize>,
+) -> Beside {
+    match adjacent {
+        None => Beside::Nothing,
+        Some(a) if lanelets[index[a.id.as_str()]].kind.is_drivable() => Beside::Road,
+        Some(_) => Beside::NotRoad,
+    }
 }
 
 /// Successors and predecessors from the references of both ends (a file may give a link on

@@ -45,6 +45,17 @@ struct OpenEnd {
     out: [f64; 2],
 }
 
+/// What a lanelet file puts beyond one bound of a lanelet.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum Beside {
+    /// No adjacent lanelet: the edge of the lanes, with a shoulder beyond.
+    Nothing,
+    /// A drivable lanelet (either direction).
+    Road,
+    /// A lanelet vehicles may not use (sidewalk, bicycle lane, parking, ...).
+    NotRoad,
+}
+
 #[derive(Clone, Debug)]
 pub(super) struct LaneletSurface {
     /// Corners in order: left j, left j+1, right j+1, right j.
@@ -55,16 +66,17 @@ pub(super) struct LaneletSurface {
 }
 
 impl LaneletSurface {
-    pub(super) fn build(lanes: &[Lane]) -> Self {
+    /// `beside[k]`: what lies beyond lane k's left and right bound.
+    pub(super) fn build(lanes: &[Lane], beside: &[[Beside; 2]]) -> Self {
         let mut quads = Vec::new();
         let mut ends = Vec::new();
-        for lane in lanes.iter().filter(|l| l.is_drivable()) {
+        for (lane, beside) in lanes.iter().zip(beside).filter(|(l, _)| l.is_drivable()) {
             let (l, r) = (&lane.left_boundary, &lane.right_boundary);
             for j in 1..l.len() {
                 quads.push([l[j - 1], l[j], r[j], r[j - 1]]);
             }
-            quads.extend(shoulder(lane, Side::Left));
-            quads.extend(shoulder(lane, Side::Right));
+            quads.extend(shoulder(lane, Side::Left, beside[0]));
+            quads.extend(shoulder(lane, Side::Right, beside[1]));
             let (n, c) = (l.len(), &lane.centerline);
             if lane.successors.is_empty() && n >= 2 {
                 ends.push(OpenEnd::new(l[n - 1], r[n - 1], c[n - 2], c[n - 1]));
@@ -116,16 +128,18 @@ enum Side {
 }
 
 /// The strip outside the lane's `side` bound, as quadrilaterals in the order of the lane's
-/// own: [`LANELET_SHOULDER_WIDTH`] wide where no lane of the same direction lies there, else
-/// [`SHARED_BOUND_OVERLAP`].
-fn shoulder(lane: &Lane, side: Side) -> Vec<[[f64; 2]; 4]> {
-    let (bound, neighbour, sign) = match side {
-        Side::Left => (&lane.left_boundary, lane.left_neighbour, 1.0),
-        Side::Right => (&lane.right_boundary, lane.right_neighbour, -1.0),
+/// own: [`LANELET_SHOULDER_WIDTH`] wide where the file puts nothing beyond the bound,
+/// [`SHARED_BOUND_OVERLAP`] into a drivable neighbour, none toward a lanelet vehicles may not
+/// use.
+fn shoulder(lane: &Lane, side: Side, beside: Beside) -> Vec<[[f64; 2]; 4]> {
+    let (bound, sign) = match side {
+        Side::Left => (&lane.left_boundary, 1.0),
+        Side::Right => (&lane.right_boundary, -1.0),
     };
-    let width = match neighbour {
-        Some(_) => SHARED_BOUND_OVERLAP,
-        None => LANELET_SHOULDER_WIDTH,
+    let width = match beside {
+        Beside::Nothing => LANELET_SHOULDER_WIDTH,
+        Beside::Road => SHARED_BOUND_OVERLAP,
+        Beside::NotRoad => return Vec::new(),
     };
     let outer: Vec<[f64; 2]> = bound
         .iter()

@@ -29,8 +29,9 @@ pub struct CommonRoadClip {
     pub version: String,
     pub map: Arc<Map>,
     pub lane_graph: Arc<LaneGraph>,
-    /// The vehicles' tracks at the file's own rate. `fps` is 1 / timeStepSize and
-    /// `frame_count` the last time step, so `duration()` is the time of the last state.
+    /// The vehicles' tracks at the file's own rate, time 0 at the file's first state. `fps`
+    /// is 1 / timeStepSize and `frame_count` the steps from the first state to the last, so
+    /// `duration()` is the time of the last state.
     pub recording: Recording,
     /// Dynamic obstacles left out: (type or reason, count).
     pub skipped: Vec<(String, usize)>,
@@ -91,9 +92,14 @@ impl CommonRoadClip {
 
     /// Why the clip yields no scene under `config`, or `None` when it yields some.
     pub fn why_no_scene(&self, config: &SceneConfig) -> Result<Option<String>> {
-        if !self.scenes(config)?.is_empty() {
-            return Ok(None);
-        }
+        Ok(self
+            .scenes(config)?
+            .is_empty()
+            .then(|| self.no_scene_reason(config)))
+    }
+
+    /// Why a clip that yields no scene under `config` yields none.
+    fn no_scene_reason(&self, config: &SceneConfig) -> String {
         let window = config.history_s + config.future_s;
         let longest = self
             .recording
@@ -101,7 +107,7 @@ impl CommonRoadClip {
             .iter()
             .map(|t| t.last_time() - t.first_time())
             .fold(0.0f64, f64::max);
-        Ok(Some(if self.recording.tracks.is_empty() {
+        if self.recording.tracks.is_empty() {
             "no vehicle has a recorded trajectory".to_string()
         } else if self.recording.duration() + 1e-9 < window {
             format!(
@@ -114,7 +120,7 @@ impl CommonRoadClip {
                  track {longest:.1} s)",
                 config.dt
             )
-        }))
+        }
     }
 
     fn benchmark_id_or_file(&self) -> String {
@@ -206,8 +212,21 @@ pub fn commonroad_scenes(
     config: &SceneConfig,
 ) -> Result<(Vec<Scene>, Vec<ClipSummary>)> {
     let mut scenes = Vec::new();
-    let mut summaries = Vec::new();
+    let mut summaries: Vec<ClipSummary> = Vec::new();
     for clip in clips {
+        if let Some(other) = summaries
+            .iter()
+            .find(|s| !clip.benchmark_id.is_empty() && s.benchmark_id == clip.benchmark_id)
+        {
+            return Err(Error::invalid(
+                clip.path.display().to_string(),
+                "benchmarkID",
+                format!(
+                    "`{}` is also the id of {}: scene ids would clash (pass each clip once)",
+                    clip.benchmark_id, other.file
+                ),
+            ));
+        }
         let clip_scenes = clip.scenes(config)?;
         summaries.push(ClipSummary {
             file: clip.path.display().to_string(),
@@ -218,7 +237,7 @@ pub fn commonroad_scenes(
             vehicles: clip.recording.tracks.len(),
             duration_s: clip.recording.duration(),
             scenes: clip_scenes.len(),
-            no_scene_because: clip.why_no_scene(config)?,
+            no_scene_because: clip_scenes.is_empty().then(|| clip.no_scene_reason(config)),
             skipped: clip.skipped.clone(),
             planning_vehicle_removed: clip.planning_vehicle_removed(),
             lanes_without_speed_limit: clip.lanes_without_speed_limit,
@@ -284,10 +303,17 @@ fn read_text(path: &Path) -> Result<String> {
     })
 }
 
-/// The vehicles' tracks: time = step x timeStepSize; acceleration from the file, else the
-/// central difference of the recorded speed.
+/// The vehicles' tracks: time = (step - first step of the file) x timeStepSize, so the clip
+/// starts at 0 as the windows expect; acceleration from the file, else the central difference
+/// of the recorded speed.
 fn recording(doc: &CommonRoadDocument, path: &Path) -> Recording {
     let dt = doc.time_step;
+    let first_step = doc
+        .vehicles
+        .iter()
+        .filter_map(|o| o.states.first().map(|s| s.step))
+        .min()
+        .unwrap_or(0);
     let tracks: Vec<Track> = doc
         .vehicles
         .iter()
@@ -298,7 +324,7 @@ fn recording(doc: &CommonRoadDocument, path: &Path) -> Recording {
             class: VehicleClass::from_label(&o.kind),
             length: o.length,
             width: o.width,
-            samples: samples(&o.states, dt),
+            samples: samples(&o.states, first_step, dt),
         })
         .collect();
     let last_step = doc
@@ -306,18 +332,17 @@ fn recording(doc: &CommonRoadDocument, path: &Path) -> Recording {
         .iter()
         .filter_map(|o| o.states.last().map(|s| s.step))
         .max()
-        .unwrap_or(0)
-        .max(0);
+        .unwrap_or(0);
     Recording {
         source: path.to_path_buf(),
         fps: 1.0 / dt,
-        frame_count: last_step as usize,
+        frame_count: (last_step - first_step) as usize,
         utm_reference: String::new(),
         tracks,
     }
 }
 
-fn samples(states: &[ObstacleState], dt: f64) -> Vec<TrackSample> {
+fn samples(states: &[ObstacleState], first_step: i64, dt: f64) -> Vec<TrackSample> {
     let n = states.len();
     (0..n)
         .map(|k| {
@@ -331,7 +356,7 @@ fn samples(states: &[ObstacleState], dt: f64) -> Vec<TrackSample> {
                 }
             });
             TrackSample {
-                t: s.step as f64 * dt,
+                t: (s.step - first_step) as f64 * dt,
                 state: AgentState {
                     x: s.x,
                     y: s.y,

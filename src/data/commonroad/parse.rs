@@ -305,7 +305,9 @@ impl<'a> Reader<'a> {
                 "accessRamp" => (1, LaneType::OnRamp),
                 "exitRamp" => (1, LaneType::OffRamp),
                 "shoulder" => (2, LaneType::Shoulder),
-                "busLane" | "busStop" | "restricted" => (3, LaneType::Restricted),
+                // Buses drive in bus lanes: a recorded bus there is on the road.
+                "busLane" => (0, LaneType::Driving),
+                "busStop" | "restricted" => (3, LaneType::Restricted),
                 "parking" => (3, LaneType::Parking),
                 "border" => (3, LaneType::Border),
                 "bicycleLane" => (3, LaneType::Biking),
@@ -365,10 +367,14 @@ impl<'a> Reader<'a> {
         };
         let mut states = Vec::new();
         if let Some(initial) = node.children().find(|n| n.has_tag_name("initialState")) {
-            states.push((initial, self.state(initial)?));
+            states.push((initial, self.state(initial, &id)?));
         }
         for state in trajectory.children().filter(|n| n.has_tag_name("state")) {
-            states.push((state, self.state(state)?));
+            states.push((state, self.state(state, &id)?));
+        }
+        if states.is_empty() {
+            skip("no recorded trajectory (occupancy set or initial state only)");
+            return Ok(None);
         }
         for w in states.windows(2) {
             let (prev, (node, next)) = (w[0].1, w[1]);
@@ -400,7 +406,8 @@ impl<'a> Reader<'a> {
         }))
     }
 
-    fn state(&self, node: Node) -> Result<ObstacleState> {
+    fn state(&self, node: Node, obstacle: &str) -> Result<ObstacleState> {
+        let fail = |message: String| Err(self.err(node, format!("obstacle {obstacle}: {message}")));
         let position = self.required(node, "position")?;
         let Some(point) = position.children().find(|n| n.has_tag_name("point")) else {
             return Err(self.err(
@@ -411,23 +418,30 @@ impl<'a> Reader<'a> {
         let [x, y] = self.point(point)?;
         let step = self.exact(self.required(node, "time")?)?;
         if step.fract() != 0.0 || !(0.0..=1e9).contains(&step) {
-            return Err(self.err(
-                node,
-                format!("time step {step}, expected a non-negative integer"),
+            return fail(format!(
+                "<time> {step}, expected a non-negative integer step"
             ));
         }
         let orientation = self.exact(self.required(node, "orientation")?)?;
         if orientation.abs() > 100.0 {
-            return Err(self.err(node, format!("orientation {orientation}, expected radians")));
+            return fail(format!("<orientation> {orientation}, expected radians"));
         }
+        // Recorded speeds may dip a little below zero (sensor noise); reversing at speed is
+        // not traffic.
         let velocity = self.exact(self.required(node, "velocity")?)?;
-        if !(-90.0..=90.0).contains(&velocity) {
-            return Err(self.err(node, format!("velocity {velocity} m/s, expected 0-90 m/s")));
+        if !(-5.0..=90.0).contains(&velocity) {
+            return fail(format!("<velocity> {velocity} m/s, expected -5 to 90 m/s"));
         }
         let acceleration = match node.children().find(|n| n.has_tag_name("acceleration")) {
             Some(a) => Some(self.exact(a)?),
             None => None,
         };
+        if acceleration.is_some_and(|a| a.abs() > 30.0) {
+            return fail(format!(
+                "<acceleration> {} m/s^2, expected at most 30 m/s^2 in size",
+                acceleration.unwrap_or_default()
+            ));
+        }
         Ok(ObstacleState {
             step: step as i64,
             x,
