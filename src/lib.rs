@@ -23,5 +23,6 @@ pub mod sim2real;
 mod test_rng;
 pub mod train;
 pub mod usage;
+pub mod xml;
 
 pub use error::{Error, Result};

@@ -548,6 +548,12 @@ fn run_files_name_commonroad_sources_relative_to_themselves_and_check_weights() 
     assert_eq!(config.data.a9_weight, 1.0);
     let err = run("[[data.commonroad]]\npath = \"clips\"\nweight = -1\n").unwrap_err();
     assert!(err.to_string().contains("data.commonroad.weight"), "{err}");
+    let err =
+        run("[[data.commonroad]]\npath = \"clips\"\nweight = 1\nspeed_limit = 120\n").unwrap_err();
+    assert!(
+        err.to_string().contains("data.commonroad.speed_limit"),
+        "{err}"
+    );
     let err = run("[data]\na9_weight = 0\n").unwrap_err();
     assert!(err.to_string().contains("sum to 0"), "{err}");
     let err = run("[[data.commonroad]]\npath = \"clips\"\nwieght = 1\n").unwrap_err();

@@ -28,6 +28,7 @@ use std::collections::HashMap;
 use std::f64::consts::PI;
 use std::path::Path;
 
+use super::track::{MAX_SPEED, MIN_SPEED};
 use crate::error::{Error, Result};
 
 /// The required columns, in the order [`Recordings::to_csv`] writes them.
@@ -49,9 +50,6 @@ const WHEELBASE: &str = "wheelbase";
 const MAX_HEADING: f64 = 2.0 * PI + 0.01;
 /// Largest accepted |steer_cmd| (rad) for a road-wheel angle.
 const MAX_STEER: f64 = 1.0;
-/// Accepted speed range (m/s); slightly negative speeds are tolerated as estimator noise.
-const MIN_SPEED: f64 = -1.0;
-const MAX_SPEED: f64 = 90.0;
 /// Largest accepted |accel_cmd| (m/s^2).
 const MAX_ACCEL: f64 = 20.0;
 /// Accepted wheelbase range (m).

@@ -3,6 +3,11 @@
 
 use crate::geometry::{OrientedBox, wrap_angle};
 
+/// Accepted recorded speeds (m/s), for every recording format: slightly negative speeds are
+/// tolerated as estimator noise; 90 m/s (324 km/h) is beyond any road vehicle in traffic.
+pub const MIN_SPEED: f64 = -1.0;
+pub const MAX_SPEED: f64 = 90.0;
+
 /// Vehicle class as the recording labels it.
 #[derive(Debug, Clone, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]

@@ -150,8 +150,8 @@ pub fn build_all_scenes(
     )
 }
 
-/// The scenes whose windows lie wholly in `[start, end]` (s), current steps on a grid of
-/// `stride_s` from the span's start.
+/// The scenes whose windows lie wholly in `[start, end]` (s), current steps on the
+/// recording's grid of `stride_s` (whole multiples of it from time 0).
 fn cut_span(
     recording: &Recording,
     start: f64,

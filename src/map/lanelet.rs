@@ -1,5 +1,5 @@
-//! Lanelet networks (CommonRoad, Lanelet2): lanes given directly as a left and a right boundary
-//! polyline with explicit successor, predecessor and adjacency references. They become the
+//! Lanelet networks (as CommonRoad files give them): lanes drawn directly as a left and a right
+//! boundary polyline with explicit successor, predecessor and adjacency references. They become the
 //! same [`Lane`]s an OpenDRIVE map samples into, so the lane graph, the simulator and every
 //! query work on them unchanged; on-road queries use the lanelet polygons
 //! ([`LaneletSurface`]).
@@ -15,7 +15,7 @@ use crate::{Error, Result};
 
 /// Widest lanelet accepted (m): a corrupt bound far from its partner would otherwise be
 /// sampled into millions of points.
-pub const MAX_LANE_WIDTH: f64 = 20.0;
+const MAX_LANE_WIDTH: f64 = 20.0;
 
 /// A lanelet's neighbour across its left or right boundary.
 #[derive(Clone, Debug, PartialEq)]
@@ -47,8 +47,9 @@ impl Map {
     /// A map from a lanelet network. Lanes without a speed limit take `default_speed_limit`
     /// (m/s). `source_name` names the file in errors, which name the lanelet and what is
     /// wrong: a bound with fewer than two points, bounds of different lengths, a coordinate
-    /// that is not finite, a lanelet longer than [`MAX_ROAD_LENGTH`], an id used twice, or a
-    /// reference to a lanelet the network does not define.
+    /// that is not finite, a bound longer than [`MAX_ROAD_LENGTH`], bounds more than 20 m
+    /// apart, zero length, swapped bounds, an id used twice, a reference to a lanelet the
+    /// network does not define, or no drivable lanelet at all.
     pub fn from_lanelets(
         lanelets: &[Lanelet],
         default_speed_limit: f64,
@@ -305,7 +306,7 @@ fn connect(lanelets: &[Lanelet], index: &HashMap<&str, usize>, lanes: &mut [Lane
     }
 }
 
-fn distance(a: [f64; 2], b: [f64; 2]) -> f64 {
+pub(super) fn distance(a: [f64; 2], b: [f64; 2]) -> f64 {
     (b[0] - a[0]).hypot(b[1] - a[1])
 }
 

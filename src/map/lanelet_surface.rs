@@ -9,9 +9,11 @@
 
 use parry2d::bounding_volume::{Aabb, BoundingVolume};
 use parry2d::partitioning::{Bvh, BvhBuildStrategy};
+use parry2d::utils::point_in_poly2d;
 
+use super::lanelet::distance;
 use super::lanes::Lane;
-use super::query::{BEYOND_END_RANGE, PointLocation, side, v};
+use super::query::{BEYOND_END_RANGE, PointLocation, segment_foot, side, v};
 
 /// A lane end narrower than this (m) is a taper (a merge or a lane drop), not a road end:
 /// vehicles continue in the lane beside it rather than leave the map there.
@@ -207,23 +209,9 @@ impl OpenEnd {
     }
 }
 
-/// Point in a (possibly slightly non-convex) quadrilateral by the crossing rule, with points
-/// within [`EDGE_TOLERANCE`] of its outline counted inside.
+/// Point in a (possibly slightly non-convex) quadrilateral, with points within
+/// [`EDGE_TOLERANCE`] of its outline counted inside.
 fn quad_contains(q: &[[f64; 2]; 4], p: [f64; 2]) -> bool {
-    let mut inside = false;
-    for i in 0..4 {
-        let (a, b) = (q[i], q[(i + 1) % 4]);
-        if (a[1] > p[1]) != (b[1] > p[1]) {
-            let x = a[0] + (p[1] - a[1]) / (b[1] - a[1]) * (b[0] - a[0]);
-            if p[0] < x {
-                inside = !inside;
-            }
-        }
-    }
-    inside
-        || (0..4).any(|i| super::query::segment_foot(q[i], q[(i + 1) % 4], p).1 <= EDGE_TOLERANCE)
-}
-
-fn distance(a: [f64; 2], b: [f64; 2]) -> f64 {
-    (b[0] - a[0]).hypot(b[1] - a[1])
+    point_in_poly2d(v(p), &q.map(v))
+        || (0..4).any(|i| segment_foot(q[i], q[(i + 1) % 4], p).1 <= EDGE_TOLERANCE)
 }

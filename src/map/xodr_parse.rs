@@ -14,15 +14,7 @@ use crate::{Error, Result};
 
 /// Parses OpenDRIVE text; `source_name` (usually the file path) is used in error messages.
 pub fn parse_xodr(text: &str, source_name: &str) -> Result<OpenDrive> {
-    let doc = Document::parse(text).map_err(|e| {
-        let pos = e.pos();
-        Error::Parse {
-            source_name: source_name.to_string(),
-            line: pos.row as usize,
-            column: pos.col as usize,
-            message: format!("not well-formed XML: {e}"),
-        }
-    })?;
+    let doc = crate::xml::parse_document(text, source_name)?;
     let cx = Ctx {
         source: source_name,
         doc: &doc,
@@ -72,13 +64,7 @@ fn sort_by_s<T>(v: &mut [T], s: impl Fn(&T) -> f64) {
 
 impl Ctx<'_, '_> {
     fn err(&self, node: Node, message: impl Into<String>) -> Error {
-        let pos = self.doc.text_pos_at(node.range().start);
-        Error::Parse {
-            source_name: self.source.to_string(),
-            line: pos.row as usize,
-            column: pos.col as usize,
-            message: message.into(),
-        }
+        crate::xml::error_at(self.doc, self.source, node, message)
     }
 
     fn req_str<'n>(&self, node: Node<'n, '_>, name: &str) -> Result<&'n str> {

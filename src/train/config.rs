@@ -450,6 +450,19 @@ impl TrainConfig {
         if self.data.commonroad.iter().any(|c| !weight(c.weight)) {
             return fail("data.commonroad.weight", "expected a finite weight >= 0");
         }
+        let max_speed = crate::data::track::MAX_SPEED;
+        if self
+            .data
+            .commonroad
+            .iter()
+            .filter_map(|c| c.speed_limit)
+            .any(|v| !(v > 0.0 && v <= max_speed))
+        {
+            return fail(
+                "data.commonroad.speed_limit",
+                &format!("expected m/s in (0, {max_speed}]"),
+            );
+        }
         let commonroad_weight: f64 = self.data.commonroad.iter().map(|c| c.weight).sum();
         if self.data.a9_weight + commonroad_weight <= 0.0 {
             return fail(

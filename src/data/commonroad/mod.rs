@@ -14,7 +14,7 @@ pub use parse::{CommonRoadDocument, FORMAT_VERSIONS, Obstacle, ObstacleState, pa
 
 use super::a9::LANE_NODE_LENGTH;
 use super::automatum::Recording;
-use super::track::{AgentState, Track, TrackSample, VehicleClass};
+use super::track::{AgentState, MAX_SPEED, Track, TrackSample, VehicleClass};
 use super::windows::{SceneConfig, build_all_scenes};
 use crate::error::{Error, Result};
 use crate::geometry::wrap_angle;
@@ -170,9 +170,9 @@ pub fn load_commonroad(
     default_speed_limit: Option<f64>,
 ) -> Result<Vec<CommonRoadClip>> {
     let limit = default_speed_limit.unwrap_or(DEFAULT_SPEED_LIMIT);
-    if !(limit > 0.0 && limit <= 90.0) {
+    if !(limit > 0.0 && limit <= MAX_SPEED) {
         return Err(Error::InvalidArgument(format!(
-            "CommonRoad default speed limit {limit} m/s, expected 0-90 m/s"
+            "CommonRoad default speed limit {limit} m/s, expected 0-{MAX_SPEED} m/s"
         )));
     }
     let mut clips = Vec::new();
@@ -213,20 +213,21 @@ pub fn commonroad_scenes(
 ) -> Result<(Vec<Scene>, Vec<ClipSummary>)> {
     let mut scenes = Vec::new();
     let mut summaries: Vec<ClipSummary> = Vec::new();
+    // Scene ids start with the clip's name: (name, file) of the clips so far.
+    let mut names: Vec<(String, &Path)> = Vec::new();
     for clip in clips {
-        if let Some(other) = summaries
-            .iter()
-            .find(|s| !clip.benchmark_id.is_empty() && s.benchmark_id == clip.benchmark_id)
-        {
+        let name = clip.benchmark_id_or_file();
+        if let Some((_, other)) = names.iter().find(|(n, _)| *n == name) {
             return Err(Error::invalid(
                 clip.path.display().to_string(),
                 "benchmarkID",
                 format!(
-                    "`{}` is also the id of {}: scene ids would clash (pass each clip once)",
-                    clip.benchmark_id, other.file
+                    "`{name}` also names {}: scene ids would clash (pass each clip once)",
+                    other.display()
                 ),
             ));
         }
+        names.push((name, &clip.path));
         let clip_scenes = clip.scenes(config)?;
         summaries.push(ClipSummary {
             file: clip.path.display().to_string(),

@@ -14,8 +14,10 @@
 
 use roxmltree::{Document, Node};
 
+use crate::data::track::{MAX_SPEED, MIN_SPEED};
 use crate::error::{Error, Result};
 use crate::map::{AdjacentLanelet, LaneType, Lanelet, RoadMark};
+use crate::xml::{error_at, parse_document};
 
 /// Format versions this reader knows.
 pub const FORMAT_VERSIONS: [&str; 2] = ["2018b", "2020a"];
@@ -91,27 +93,13 @@ struct Reader<'a> {
 
 /// Parses the text of a CommonRoad file; `source` names it in errors.
 pub fn parse_commonroad(text: &str, source: &str) -> Result<CommonRoadDocument> {
-    let doc = Document::parse(text).map_err(|e| {
-        let pos = e.pos();
-        Error::Parse {
-            source_name: source.to_string(),
-            line: pos.row as usize,
-            column: pos.col as usize,
-            message: format!("not well-formed XML: {e}"),
-        }
-    })?;
+    let doc = parse_document(text, source)?;
     Reader { doc: &doc, source }.document()
 }
 
 impl<'a> Reader<'a> {
     fn err(&self, node: Node, message: impl Into<String>) -> Error {
-        let pos = self.doc.text_pos_at(node.range().start);
-        Error::Parse {
-            source_name: self.source.to_string(),
-            line: pos.row as usize,
-            column: pos.col as usize,
-            message: message.into(),
-        }
+        error_at(self.doc, self.source, node, message)
     }
 
     fn document(&self) -> Result<CommonRoadDocument> {
@@ -189,13 +177,7 @@ impl<'a> Reader<'a> {
                 if !MAX_SPEED_SIGNS.contains(&sign_id) {
                     continue;
                 }
-                let value = self.required(element, "additionalValue")?;
-                let speed = self.number(value)?;
-                if !(speed > 0.0 && speed <= 90.0) {
-                    return Err(
-                        self.err(value, format!("max speed {speed} m/s, expected 0-90 m/s"))
-                    );
-                }
+                let speed = self.speed_limit(self.required(element, "additionalValue")?)?;
                 signs.push((id.to_string(), speed));
             }
         }
@@ -240,16 +222,13 @@ impl<'a> Reader<'a> {
         let kind = self.lane_type(&types)?;
         let mut speed_limit = None;
         if let Some(limit) = node.children().find(|n| n.has_tag_name("speedLimit")) {
-            speed_limit = Some(self.number(limit)?);
+            speed_limit = Some(self.speed_limit(limit)?);
         }
         for sign_ref in node.children().filter(|n| n.has_tag_name("trafficSignRef")) {
             let target = self.reference(sign_ref)?;
             if let Some((_, speed)) = signs.iter().find(|(id, _)| id == target) {
                 speed_limit = Some(*speed);
             }
-        }
-        if let Some(v) = speed_limit.filter(|v| !(*v > 0.0 && *v <= 90.0)) {
-            return Err(self.err(node, format!("speed limit {v} m/s, expected 0-90 m/s")));
         }
         Ok(Lanelet {
             id,
@@ -264,6 +243,18 @@ impl<'a> Reader<'a> {
             kind,
             speed_limit,
         })
+    }
+
+    /// A speed limit (m/s): positive, at most [`MAX_SPEED`].
+    fn speed_limit(&self, node: Node) -> Result<f64> {
+        let v = self.number(node)?;
+        if !(v > 0.0 && v <= MAX_SPEED) {
+            return Err(self.err(
+                node,
+                format!("speed limit {v} m/s, expected 0-{MAX_SPEED} m/s"),
+            ));
+        }
+        Ok(v)
     }
 
     fn bound(&self, node: Node) -> Result<(Vec<[f64; 2]>, RoadMark)> {
@@ -426,11 +417,11 @@ impl<'a> Reader<'a> {
         if orientation.abs() > 100.0 {
             return fail(format!("<orientation> {orientation}, expected radians"));
         }
-        // Recorded speeds may dip a little below zero (sensor noise); reversing at speed is
-        // not traffic.
         let velocity = self.exact(self.required(node, "velocity")?)?;
-        if !(-5.0..=90.0).contains(&velocity) {
-            return fail(format!("<velocity> {velocity} m/s, expected -5 to 90 m/s"));
+        if !(MIN_SPEED..=MAX_SPEED).contains(&velocity) {
+            return fail(format!(
+                "<velocity> {velocity} m/s, expected {MIN_SPEED} to {MAX_SPEED} m/s"
+            ));
         }
         let acceleration = match node.children().find(|n| n.has_tag_name("acceleration")) {
             Some(a) => Some(self.exact(a)?),
