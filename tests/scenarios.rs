@@ -356,3 +356,154 @@ fn long_tail_scenarios_are_harder_than_real_scenes_for_the_idm_driver() {
         "{target_pct} vs {nominal_pct}"
     );
 }
+
+/// Speeds and forward travel (along each agent's initial heading) per step of a rollout, for
+/// the simulated agents (not replayed from a log) while on the road.
+fn speeds_and_travel(out: &rtr::sim::Rollout, batch: &SceneBatch) -> Vec<Vec<(f64, f64)>> {
+    let [b, n, t1, _] = out.poses.dims();
+    let poses = out
+        .poses
+        .to_data()
+        .convert::<f64>()
+        .try_into_vec::<f64>()
+        .unwrap();
+    let present = out.present.to_data().try_into_vec_as::<bool>().unwrap();
+    let simulated = batch
+        .agent_controlled
+        .to_data()
+        .try_into_vec_as::<bool>()
+        .unwrap()
+        .into_iter()
+        .zip(
+            batch
+                .agent_hero
+                .to_data()
+                .try_into_vec_as::<bool>()
+                .unwrap(),
+        )
+        .map(|(controlled, hero)| controlled || hero);
+    (0..b * n)
+        .zip(simulated)
+        .filter(|&(_, simulated)| simulated)
+        .map(|(i, _)| {
+            let at = |k: usize, c: usize| poses[(i * t1 + k) * 4 + c];
+            let (sin, cos) = at(0, 2).sin_cos();
+            (0..t1)
+                .filter(|&k| present[i * t1 + k])
+                .map(|k| {
+                    let travel = (at(k, 0) - at(0, 0)) * cos + (at(k, 1) - at(0, 1)) * sin;
+                    (at(k, 3), travel)
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// Rolls `scenes` out twice: under IDM with the scenarios' heroes scripted (when given), and
+/// with every agent braking as hard as the limits allow. Checks that no speed is negative and
+/// that no braked vehicle travels backwards; returns (agents that reached rest, agents).
+fn check_standstill(scenes: &[&Scene], heroes: Option<&[&ConcreteScenario]>) -> (usize, usize) {
+    #[allow(deprecated)]
+    let device = Device::ndarray();
+    let batch = SceneBatch::from_scenes(scenes, &device).unwrap();
+    let dynamics = Dynamics::bicycle(0.5);
+    let config = RolloutConfig::default();
+    let mut caches = MapCaches::default();
+    let mut idm = IdmDriver::new(scenes, IdmParams::default(), ActionLimits::default());
+    let driven = match heroes {
+        Some(sc) => {
+            let mut scripts = hero_scripts(sc, scenes);
+            let mut scripted = Scripted {
+                policy: &mut idm,
+                script: &mut scripts,
+                mask: batch.agent_hero.clone(),
+            };
+            rollout(
+                scenes,
+                &batch,
+                &dynamics,
+                &mut scripted,
+                &mut caches,
+                &config,
+            )
+        }
+        None => rollout(scenes, &batch, &dynamics, &mut idm, &mut caches, &config),
+    }
+    .unwrap();
+    let mut full_brake = |obs: &rtr::sim::Observation| rtr::sim::Controls {
+        accel: Tensor::ones(obs.state.speed.dims(), &device).mul_scalar(-20.0),
+        steer: Tensor::zeros(obs.state.speed.dims(), &device),
+    };
+    let braked = rollout(
+        scenes,
+        &batch,
+        &dynamics,
+        &mut full_brake,
+        &mut caches,
+        &config,
+    )
+    .unwrap();
+    let (mut at_rest, mut agents) = (0, 0);
+    for agent in speeds_and_travel(&driven, &batch) {
+        assert!(
+            agent.iter().all(|&(v, _)| v >= 0.0),
+            "negative speed: {agent:?}"
+        );
+        agents += 1;
+        at_rest += agent.iter().any(|&(v, _)| v == 0.0) as usize;
+    }
+    for agent in speeds_and_travel(&braked, &batch) {
+        assert!(
+            agent.iter().all(|&(v, _)| v >= 0.0),
+            "negative speed: {agent:?}"
+        );
+        for pair in agent.windows(2) {
+            assert!(
+                pair[1].1 >= pair[0].1 - 1e-3,
+                "a braked vehicle rolled back: {pair:?}"
+            );
+        }
+        agents += 1;
+        at_rest += agent.iter().any(|&(v, _)| v == 0.0) as usize;
+    }
+    (at_rest, agents)
+}
+
+#[test]
+fn braked_vehicles_stop_and_stay_stopped_on_real_scenes_and_stop_families() {
+    let a9: Vec<&Scene> = common::a9_scenes().test.iter().take(20).collect();
+    check_standstill(&a9, None);
+
+    let sets = generate_sets(
+        families(),
+        stats(),
+        &GenerateConfig {
+            in_distribution: 0,
+            ood: 24,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let stop_families = ["sudden_stop", "stopped_vehicle_in_lane", "stop_and_go"];
+    let stops: Vec<&ConcreteScenario> = sets
+        .ood
+        .iter()
+        .filter(|s| stop_families.contains(&s.family.as_str()))
+        .collect();
+    assert!(stops.len() >= 3, "{} stop scenarios", stops.len());
+    let scenes: Vec<Scene> = stops.iter().map(|s| s.to_scene().unwrap()).collect();
+    let (mut at_rest, mut agents) = (0, 0);
+    let horizons: BTreeSet<usize> = scenes.iter().map(|s| s.future_steps).collect();
+    for h in horizons {
+        let idx: Vec<usize> = (0..scenes.len())
+            .filter(|&i| scenes[i].future_steps == h)
+            .collect();
+        let group: Vec<&Scene> = idx.iter().map(|&i| &scenes[i]).collect();
+        let group_sc: Vec<&ConcreteScenario> = idx.iter().map(|&i| stops[i]).collect();
+        let (r, a) = check_standstill(&group, Some(&group_sc));
+        (at_rest, agents) = (at_rest + r, agents + a);
+    }
+    println!("stop families: {at_rest} of {agents} agent rollouts reached rest");
+    // The heroes stop, and vehicles behind them or braking hard from town speeds come to rest.
+    assert!(at_rest >= stops.len(), "{at_rest} of {agents} reached rest");
+}

@@ -12,6 +12,13 @@
 //! - **kinematics**, at every integrator evaluation: changes to the time derivative (drag,
 //!   understeer, sideslip).
 //!
+//! **Standstill.** Speed never goes below zero: a vehicle braked to rest stays at rest instead
+//! of integrating `v' = u` into reverse (no agent in traffic logs reverses). Every integrator
+//! evaluation clamps the speed at 0, so the rule holds for policies, scripted heroes,
+//! replayed logs and sim-to-real alike. Gradients through a moving vehicle are unchanged; at
+//! rest under a braking command the speed's gradient is zero (more braking changes nothing),
+//! and a pull-away command (`u > 0` from rest) gets the ordinary gradient.
+//!
 //! The paper steps forward Euler once per dt = 0.5 s ([`Dynamics::bicycle`]); sim-to-real
 //! integrates with the midpoint rule and substeps, so integration error is not mistaken for
 //! missing physics.
@@ -208,12 +215,13 @@ impl Dynamics {
     }
 }
 
+/// One explicit step of length `h`, with the standstill rule (speed clamped at 0).
 fn advance(state: &VehicleState, d: &Derivative, h: f64) -> VehicleState {
     VehicleState {
         x: state.x.clone() + d.x.clone().mul_scalar(h),
         y: state.y.clone() + d.y.clone().mul_scalar(h),
         heading: state.heading.clone() + d.heading.clone().mul_scalar(h),
-        speed: state.speed.clone() + d.speed.clone().mul_scalar(h),
+        speed: (state.speed.clone() + d.speed.clone().mul_scalar(h)).clamp_min(0.0),
         aux: Vec::new(),
     }
 }
@@ -223,6 +231,7 @@ mod tests {
     use super::*;
     use crate::sim::state::VehicleState;
     use crate::sim::terms::Drag;
+    use burn::tensor::TensorData;
 
     #[allow(deprecated)]
     fn device() -> Device {
@@ -285,5 +294,82 @@ mod tests {
         let dv = value(&plain.step(&s, &c, &w).speed) - value(&with_drag.step(&s, &c, &w).speed);
         assert!((dv - (0.0004 * 900.0 + 0.1) * 0.5).abs() < 1e-5, "{dv}");
         assert_eq!(with_drag.terms()[0].name(), "drag");
+    }
+
+    fn braking(accel: f64) -> Controls {
+        Controls {
+            accel: scalar(accel),
+            steer: scalar(0.0),
+        }
+    }
+
+    #[test]
+    fn a_vehicle_braked_to_rest_stays_at_rest() {
+        // 3 m/s at 4 m/s^2 stops within 1.125 m; one Euler step per 0.5 s moves 1.5 + 0.5 m.
+        for (integrator, substeps, stop_m) in [
+            (Integrator::Euler, 1, 2.0),
+            (Integrator::Midpoint, 5, 1.125),
+        ] {
+            let mut dynamics = Dynamics::bicycle(0.5);
+            dynamics.limits = None;
+            dynamics.integrator = integrator;
+            dynamics.substeps = substeps;
+            let mut s = state(0.0, 3.0);
+            let mut last_x = 0.0;
+            for step in 0..6 {
+                s = dynamics.step(&s, &braking(-4.0), &scalar(2.8));
+                let (x, v) = (value(&s.x), value(&s.speed));
+                assert!(v >= 0.0, "{integrator:?} step {step}: speed {v}");
+                assert!(
+                    x >= last_x,
+                    "{integrator:?} step {step}: rolled back {last_x} -> {x}"
+                );
+                last_x = x;
+            }
+            assert_eq!(value(&s.speed), 0.0);
+            assert!((last_x - stop_m).abs() < 0.03, "{integrator:?}: {last_x}");
+        }
+    }
+
+    #[test]
+    fn gradients_through_moving_vehicles_are_unchanged_and_vanish_when_braking_at_rest() {
+        let device = crate::backend::Backend::NdArray
+            .device(true)
+            .expect("ndarray device");
+        let leaf = |v: f64| {
+            Tensor::<2>::from_data(TensorData::new(vec![v as f32], [1, 1]), &device).require_grad()
+        };
+        let constant =
+            |v: f64| Tensor::<2>::from_data(TensorData::new(vec![v as f32], [1, 1]), &device);
+        let mut dynamics = Dynamics::bicycle(0.5);
+        dynamics.limits = None;
+        // d v' / d u = dt while moving, 0 when the command would reverse a vehicle at rest,
+        // dt again for a pull-away from rest.
+        for (speed, accel, expected) in [(10.0, -2.0, 0.5), (0.0, -2.0, 0.0), (0.0, 1.0, 0.5)] {
+            let u = leaf(accel);
+            let s = VehicleState {
+                x: constant(0.0),
+                y: constant(0.0),
+                heading: constant(0.0),
+                speed: constant(speed),
+                aux: Vec::new(),
+            };
+            let c = Controls {
+                accel: u.clone(),
+                steer: constant(0.0),
+            };
+            let next = dynamics.step(&s, &c, &constant(2.8));
+            let grads = next.speed.sum().backward();
+            let g = u
+                .grad(&grads)
+                .expect("gradient")
+                .into_data()
+                .try_to_vec::<f32>()
+                .unwrap()[0];
+            assert!(
+                (g as f64 - expected).abs() < 1e-6,
+                "v {speed}, u {accel}: {g}"
+            );
+        }
     }
 }
