@@ -7,7 +7,7 @@
 
 use std::time::Instant;
 
-use rtr::sim2real::{Effect, GeneratorConfig, Sim2RealOptions, generate, identify};
+use rtr::sim2real::{Effect, GeneratorConfig, Sim2RealOptions, Uncatalogued, generate, identify};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     rtr::allocator::tune_for_tensors();
@@ -27,24 +27,32 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut wrong_wheelbase = GeneratorConfig::with_effect(None, 11);
     wrong_wheelbase.true_wheelbase_m = 3.1;
     cases.push(("wheelbase_3.1_declared_2.8".into(), wrong_wheelbase));
+    for name in Uncatalogued::NAMES {
+        let physics = Uncatalogued::typical(name).expect("a known name");
+        cases.push((name.into(), GeneratorConfig::with_uncatalogued(physics, 11)));
+    }
     cases.retain(|(name, _)| wanted.is_empty() || wanted.contains(name));
 
     println!(
-        "| concealed | truth | found first | fitted | baseline RMSE (m) | final RMSE (m) | drop | time (s) |"
+        "| concealed | truth | found first | fitted | baseline RMSE (m) | final RMSE (m) | drop | noise floor (m) | unexplained | time (s) |"
     );
-    println!("|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
     for (name, config) in cases {
         let started = Instant::now();
         let recordings = generate(&config, &device);
         let report = identify(&recordings, &Sim2RealOptions::default(), &|_| {})?.report;
-        let truth = match &config.effect {
-            Some((e, v)) => pairs(e.params().iter().map(|s| s.name).zip(v.iter().copied())),
-            None => format!("wheelbase {} m", config.true_wheelbase_m),
+        let truth = match (&config.effect, config.uncatalogued) {
+            (Some((e, v)), _) => pairs(e.params().iter().map(|s| s.name).zip(v.iter().copied())),
+            (None, Some(physics)) => format!("{physics:?}"),
+            (None, None) => format!("wheelbase {} m", config.true_wheelbase_m),
         };
         let (found, fitted) = match report.findings.first() {
             Some(f) => (
-                f.effect.to_string(),
-                pairs(f.params.iter().map(|(k, v)| (k.as_str(), *v))),
+                f.name.clone(),
+                match &f.equation {
+                    Some(equation) => equation.clone(),
+                    None => pairs(f.params.iter().map(|(k, v)| (k.as_str(), *v))),
+                },
             ),
             None => (
                 "nothing".into(),
@@ -52,10 +60,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             ),
         };
         println!(
-            "| {name} | {truth} | {found} | {fitted} | {:.3} | {:.3} | {:.0} % | {:.0} |",
+            "| {name} | {truth} | {found} | {fitted} | {:.3} | {:.3} | {:.0} % | {:.3} | {} | {:.0} |",
             report.baseline.heldout_pos_rmse_m,
             report.final_model.heldout_pos_rmse_m,
             report.final_model.improvement_vs_baseline_pct,
+            report.unexplained.floor_pos_m,
+            if report.unexplained.at_floor {
+                "none".to_string()
+            } else {
+                format!(
+                    "{:.3} m ({:.2}x floor)",
+                    report.unexplained.excess_m, report.unexplained.ratio
+                )
+            },
             started.elapsed().as_secs_f64()
         );
         if std::env::var_os("RTR_VERBOSE").is_some() {

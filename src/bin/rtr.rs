@@ -212,6 +212,10 @@ struct Sim2RealArgs {
     /// Seed of the train / held-out split.
     #[arg(long, default_value_t = 2023)]
     seed: u64,
+    /// Only the catalogue's named effects compete; the open-ended stage's equation is still
+    /// regressed and reported, but not kept.
+    #[arg(long)]
+    catalogue_only: bool,
 }
 
 #[derive(Subcommand)]
@@ -219,7 +223,8 @@ enum RecordingsCommand {
     /// Recordings from a plant with one concealed catalogue effect (or none), under sensor
     /// noise: a known answer for `rtr sim2real`.
     Generate {
-        /// accel_lag, steer_lag, dead_time, drag, understeer, steer_rate_limit, sideslip or none.
+        /// accel_lag, steer_lag, dead_time, drag, understeer, steer_rate_limit, sideslip, none,
+        /// or physics outside the catalogue: speed_dependent_steering, brake_gain.
         #[arg(long)]
         effect: String,
         #[arg(long, default_value_t = 11)]
@@ -818,6 +823,7 @@ fn sim2real(args: Sim2RealArgs) -> Result<()> {
         horizon_s: args.horizon,
         seed: args.seed,
         commands_inferred,
+        discover: !args.catalogue_only,
         ..Default::default()
     };
     options.fit.iterations = args.iterations;
@@ -836,14 +842,7 @@ fn sim2real(args: Sim2RealArgs) -> Result<()> {
     rtr::io::atomic_write(&args.report, json.as_bytes())?;
     println!("report: {}", args.report.display());
     if let Some(dir) = &args.plots {
-        let written = write_plots(
-            dir,
-            &report.mismatch,
-            &report.final_model.mismatch,
-            &outcome.heldout,
-            &outcome.baseline,
-            &outcome.final_model,
-        )?;
+        let written = write_plots(dir, &outcome)?;
         for path in written {
             println!("plot: {}", path.display());
         }
@@ -860,21 +859,28 @@ fn sim2real(args: Sim2RealArgs) -> Result<()> {
 }
 
 fn generate_recordings(effect: &str, seed: u64, tracks: usize, out: &Path) -> Result<()> {
-    use rtr::sim2real::{Effect, GeneratorConfig, generate};
-    let effect = match effect {
-        "none" => None,
-        name => Some(Effect::from_name(name).ok_or_else(|| {
-            let names: Vec<&str> = Effect::ALL.iter().map(|e| e.name()).collect();
-            Error::InvalidArgument(format!(
-                "unknown effect `{name}`: expected none or one of {}",
-                names.join(", ")
-            ))
-        })?),
-    };
+    use rtr::sim2real::{Effect, GeneratorConfig, Uncatalogued, generate};
     if tracks < 3 {
         return Err(Error::InvalidArgument("--tracks must be at least 3".into()));
     }
-    let mut config = GeneratorConfig::with_effect(effect, seed);
+    let mut config = match effect {
+        "none" => GeneratorConfig::with_effect(None, seed),
+        name => match (Effect::from_name(name), Uncatalogued::typical(name)) {
+            (Some(effect), _) => GeneratorConfig::with_effect(Some(effect), seed),
+            (None, Some(physics)) => GeneratorConfig::with_uncatalogued(physics, seed),
+            (None, None) => {
+                let names: Vec<&str> = Effect::ALL
+                    .iter()
+                    .map(|e| e.name())
+                    .chain(Uncatalogued::NAMES)
+                    .collect();
+                return Err(Error::InvalidArgument(format!(
+                    "unknown --effect `{name}`: expected none or one of {}",
+                    names.join(", ")
+                )));
+            }
+        },
+    };
     config.tracks = tracks;
     let device = rtr::backend::Backend::NdArray.device(false)?;
     let recordings = generate(&config, &device);
@@ -884,9 +890,10 @@ fn generate_recordings(effect: &str, seed: u64, tracks: usize, out: &Path) -> Re
         tracks,
         config.duration_s,
         1.0 / config.period_s,
-        match &config.effect {
-            Some((e, v)) => format!(", concealed {e} {v:?}"),
-            None => ", no concealed effect".into(),
+        match (&config.effect, config.uncatalogued) {
+            (Some((e, v)), _) => format!(", concealed {e} {v:?}"),
+            (None, Some(physics)) => format!(", concealed {physics:?} (not in the catalogue)"),
+            (None, None) => ", no concealed effect".into(),
         },
         out.display()
     );

@@ -7,6 +7,7 @@
 use burn::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use super::library::{Equation, Feature, LibraryTerm};
 use super::terms::{
     Channel, DeadTime, Drag, FirstOrderLag, Sideslip, SteerRateLimit, Understeer, parameter,
 };
@@ -180,6 +181,18 @@ pub struct FittedTerm {
 pub struct DynamicsFile {
     #[serde(default)]
     pub terms: Vec<FittedTerm>,
+    /// Terms found by sim-to-real's open-ended discovery ([`super::library`]).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub discovered: Vec<DiscoveredTerm>,
+}
+
+/// One library term with its coefficient: `equation += coefficient * feature`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DiscoveredTerm {
+    pub equation: Equation,
+    pub feature: Feature,
+    pub coefficient: f64,
 }
 
 impl DynamicsFile {
@@ -198,6 +211,32 @@ impl DynamicsFile {
 
     /// Every term names each of its parameters once, inside the catalogue's range.
     pub fn validate(&self, source: &str) -> Result<()> {
+        for (k, term) in self.discovered.iter().enumerate() {
+            let place = format!("discovered[{k}]");
+            if !Feature::library(term.equation).contains(&term.feature) {
+                let names: Vec<&str> = Feature::library(term.equation)
+                    .iter()
+                    .map(|f| f.symbol())
+                    .collect();
+                return Err(Error::invalid(
+                    source,
+                    &place,
+                    format!(
+                        "feature `{}` is not in the {} library: expected one of {}",
+                        term.feature.symbol(),
+                        term.equation.symbol(),
+                        names.join(", ")
+                    ),
+                ));
+            }
+            if !term.coefficient.is_finite() {
+                return Err(Error::invalid(
+                    source,
+                    &place,
+                    format!("coefficient {} is not finite", term.coefficient),
+                ));
+            }
+        }
         for (k, term) in self.terms.iter().enumerate() {
             let place = format!("terms[{k}] ({})", term.effect);
             for spec in term.effect.params() {
@@ -241,6 +280,14 @@ impl DynamicsFile {
                 .collect();
             let dt = dynamics.dt;
             dynamics = dynamics.with_term(term.effect.term(&params, dt));
+        }
+        if !self.discovered.is_empty() {
+            let terms = self
+                .discovered
+                .iter()
+                .map(|t| (t.equation, t.feature, parameter(t.coefficient, device)))
+                .collect();
+            dynamics = dynamics.with_term(Box::new(LibraryTerm { terms }));
         }
         dynamics
     }

@@ -7,6 +7,7 @@ pub mod catalogue;
 pub mod dynamics;
 pub mod infractions;
 pub mod inverse;
+pub mod library;
 pub mod limits;
 pub mod loss;
 pub mod replay;

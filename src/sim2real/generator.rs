@@ -1,7 +1,9 @@
 //! Recordings from a richer "true" plant with one concealed effect, to prove sim-to-real
 //! blind: drivers follow speed targets and steer through lane changes, curves, low-speed
-//! turns and brake events, while the plant adds the hidden term and the recording adds
-//! sensor noise sized so no single step gives the effect away.
+//! turns and brake events, stop at lights and crawl in stop-and-go queues (some tracks start
+//! at rest), while the plant adds the hidden term and the recording adds sensor noise sized
+//! so no single step gives the effect away. Ordinary recordings have stops; a generator
+//! without them would not measure what users meet.
 
 use burn::prelude::*;
 use rand::{Rng, SeedableRng};
@@ -12,7 +14,9 @@ use crate::data::{RecordedTrack, Recordings};
 use crate::geometry::wrap_angle;
 use crate::sim::catalogue::Effect;
 use crate::sim::terms::parameter;
-use crate::sim::{Controls, Dynamics, Integrator, VehicleState};
+use crate::sim::{
+    Controls, Derivative, Dynamics, DynamicsTerm, Integrator, TermInput, VehicleState,
+};
 
 /// Sensor noise (standard deviations): RTK-GNSS-grade position, IMU heading, wheel speed.
 #[derive(Debug, Clone, Copy)]
@@ -46,6 +50,8 @@ pub struct GeneratorConfig {
     pub true_wheelbase_m: f64,
     /// The concealed effect and its parameter values (catalogue order), if any.
     pub effect: Option<(Effect, Vec<f64>)>,
+    /// Concealed physics outside the catalogue, if any (for the open-ended stage).
+    pub uncatalogued: Option<Uncatalogued>,
     pub noise: SensorNoise,
 }
 
@@ -60,8 +66,77 @@ impl GeneratorConfig {
             declared_wheelbase_m: 2.8,
             true_wheelbase_m: 2.8,
             effect: effect.map(|e| (e, typical(e))),
+            uncatalogued: None,
             noise: SensorNoise::default(),
         }
+    }
+
+    /// As [`GeneratorConfig::with_effect`], with physics the catalogue has no term for.
+    pub fn with_uncatalogued(physics: Uncatalogued, seed: u64) -> Self {
+        Self {
+            uncatalogued: Some(physics),
+            ..Self::with_effect(None, seed)
+        }
+    }
+}
+
+/// Physics no catalogue effect describes, to prove the open-ended stage on.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Uncatalogued {
+    /// The road-wheel angle changes with speed, phi_actual = phi (1 - k v). With k < 0 the
+    /// steering quickens with speed, which neither the wheelbase (a constant scale) nor the
+    /// catalogue's understeer (it only slows the yaw response, with v^2) can follow; with
+    /// k > 0 understeer imitates it closely within a few per cent.
+    SpeedDependentSteering { k_per_m_s: f64 },
+    /// Braking acts `gain` times as strongly as commanded; throttle as commanded.
+    BrakeGain { gain: f64 },
+}
+
+impl Uncatalogued {
+    pub const NAMES: [&'static str; 2] = ["speed_dependent_steering", "brake_gain"];
+
+    /// By name, at a realistic strength.
+    pub fn typical(name: &str) -> Option<Self> {
+        match name {
+            "speed_dependent_steering" => {
+                Some(Uncatalogued::SpeedDependentSteering { k_per_m_s: -0.006 })
+            }
+            "brake_gain" => Some(Uncatalogued::BrakeGain { gain: 1.3 }),
+            _ => None,
+        }
+    }
+
+    fn term(self) -> Box<dyn DynamicsTerm> {
+        Box::new(UncataloguedTerm(self))
+    }
+}
+
+/// The plant's term for [`Uncatalogued`] physics.
+#[derive(Debug)]
+struct UncataloguedTerm(Uncatalogued);
+
+impl DynamicsTerm for UncataloguedTerm {
+    fn name(&self) -> &str {
+        match self.0 {
+            Uncatalogued::SpeedDependentSteering { .. } => "speed_dependent_steering",
+            Uncatalogued::BrakeGain { .. } => "brake_gain",
+        }
+    }
+
+    fn derivative(&self, mut d: Derivative, input: &TermInput) -> Derivative {
+        match self.0 {
+            Uncatalogued::SpeedDependentSteering { k_per_m_s } => {
+                let v = input.state.speed.clone();
+                let phi = input.controls.steer.clone()
+                    * (v.clone().mul_scalar(-k_per_m_s).add_scalar(1.0));
+                d.heading = v * phi.tan() / input.wheelbase.clone();
+            }
+            Uncatalogued::BrakeGain { gain } => {
+                let braking = input.controls.accel.clone().clamp_max(0.0);
+                d.speed = d.speed + braking.mul_scalar(gain - 1.0);
+            }
+        }
+        d
     }
 }
 
@@ -96,6 +171,9 @@ pub fn generate(config: &GeneratorConfig, device: &Device) -> Recordings {
         let params: Vec<Tensor<2>> = values.iter().map(|&v| parameter(v, device)).collect();
         plant = plant.with_term(effect.term(&params, dt));
     }
+    if let Some(physics) = config.uncatalogued {
+        plant = plant.with_term(physics.term());
+    }
     let mut drivers: Vec<Driver> = (0..n).map(|_| Driver::new(&mut rng)).collect();
     let column = |values: Vec<f64>| {
         let v: Vec<f32> = values.iter().map(|&x| x as f32).collect();
@@ -111,7 +189,7 @@ pub fn generate(config: &GeneratorConfig, device: &Device) -> Recordings {
         x: column((0..n).map(|_| rng.random_range(-500.0..500.0)).collect()),
         y: column((0..n).map(|_| rng.random_range(-500.0..500.0)).collect()),
         heading: column((0..n).map(|_| rng.random_range(-3.0..3.0)).collect()),
-        speed: column(drivers.iter().map(|d| d.target).collect()),
+        speed: column(drivers.iter().map(Driver::initial_speed).collect()),
         aux: Vec::new(),
     };
     let zero = Controls {
@@ -164,8 +242,26 @@ pub fn generate(config: &GeneratorConfig, device: &Device) -> Recordings {
     }
 }
 
-/// Speed band centres (m/s): town, rural road, highway.
-const SPEED_BANDS: [f64; 3] = [9.0, 20.0, 30.0];
+/// Speed band centres (m/s): a stop-and-go queue, town, rural road, highway.
+const SPEED_BANDS: [f64; 4] = [4.0, 9.0, 20.0, 30.0];
+
+/// Largest road-wheel angle a driver commands (rad).
+const MAX_STEER_RAD: f64 = 0.5;
+
+/// Lane changes and curves need at least this speed (m/s); slower, drivers go straight or turn.
+const MIN_MANOEUVRE_SPEED: f64 = 6.0;
+
+/// Below this speed (m/s) a stopping driver holds the brake: the vehicle is at rest.
+const AT_REST_M_S: f64 = 0.05;
+
+/// A stop in progress: at a light, at the end of a queue, or before the track starts.
+#[derive(Debug, Clone, Copy)]
+enum Stop {
+    /// Braking at `decel` (m/s^2, negative) until at rest.
+    Braking { decel: f64, stand_s: f64 },
+    /// At rest with the brake held until `until`.
+    Standing { until: f64 },
+}
 
 /// The steering manoeuvre in progress.
 #[derive(Debug, Clone, Copy)]
@@ -203,6 +299,7 @@ struct Driver {
     next_target_at: f64,
     brake_until: f64,
     brake: f64,
+    stop: Option<Stop>,
     manoeuvre: Manoeuvre,
     wheelbase: f64,
 }
@@ -210,12 +307,17 @@ struct Driver {
 impl Driver {
     fn new(rng: &mut ChaCha8Rng) -> Self {
         let base = SPEED_BANDS[rng.random_range(0..SPEED_BANDS.len())];
+        // Some tracks start at rest, as a log started at a light or in a parked car would.
+        let starts_at_rest = rng.random_bool(0.15);
         Self {
             base,
             target: base * rng.random_range(0.8..1.2),
             next_target_at: rng.random_range(3.0..8.0),
             brake_until: -1.0,
             brake: 0.0,
+            stop: starts_at_rest.then(|| Stop::Standing {
+                until: rng.random_range(1.0..4.0),
+            }),
             manoeuvre: Manoeuvre::Straight {
                 until: rng.random_range(1.0..4.0),
             },
@@ -223,7 +325,40 @@ impl Driver {
         }
     }
 
+    fn initial_speed(&self) -> f64 {
+        match self.stop {
+            Some(_) => 0.0,
+            None => self.target,
+        }
+    }
+
     fn command(&mut self, t: f64, v: f64, rng: &mut ChaCha8Rng) -> (f64, f64) {
+        let accel = self.accel(t, v, rng);
+        // A passenger car's road wheels turn at most about 0.5 rad (lane changes and curves
+        // are planned for the speed at their start; a stop during one would ask for more).
+        let steer = self
+            .steer(t, v.max(1.0), rng)
+            .clamp(-MAX_STEER_RAD, MAX_STEER_RAD);
+        // Rounded to what a CAN log keeps.
+        ((accel * 1e3).round() / 1e3, (steer * 1e5).round() / 1e5)
+    }
+
+    /// The longitudinal command: a stop in progress, a brake event, or tracking the target.
+    fn accel(&mut self, t: f64, v: f64, rng: &mut ChaCha8Rng) -> f64 {
+        match self.stop {
+            Some(Stop::Braking { decel, stand_s }) if v <= AT_REST_M_S => {
+                self.stop = Some(Stop::Standing { until: t + stand_s });
+                return decel.max(-1.5);
+            }
+            Some(Stop::Braking { decel, .. }) => return decel,
+            // At rest, a driver holds the brake pedal.
+            Some(Stop::Standing { until }) if t < until => return -1.0,
+            Some(Stop::Standing { .. }) => {
+                self.stop = None;
+                self.next_target_at = t + rng.random_range(4.0..10.0);
+            }
+            None => {}
+        }
         if t >= self.next_target_at {
             // Drives pass from town to highway and back, so every track visits every regime.
             if rng.random_bool(0.3) {
@@ -231,19 +366,30 @@ impl Driver {
             }
             self.target = (self.base * rng.random_range(0.6..1.3)).max(3.0);
             self.next_target_at = t + rng.random_range(4.0..10.0);
+            // Stops are common in queues and town, rare on rural roads, absent on highways.
+            let stop_chance = match self.base {
+                b if b < 5.0 => 0.6,
+                b if b < 10.0 => 0.35,
+                b if b < 25.0 => 0.1,
+                _ => 0.0,
+            };
+            if rng.random_bool(stop_chance) {
+                self.stop = Some(Stop::Braking {
+                    decel: -rng.random_range(1.0..3.5),
+                    stand_s: rng.random_range(1.0..8.0),
+                });
+                return self.accel(t, v, rng);
+            }
             if rng.random_bool(0.2) && v > 8.0 {
                 self.brake_until = t + rng.random_range(1.0..2.0);
                 self.brake = -rng.random_range(3.0..5.5);
             }
         }
-        let accel = if t < self.brake_until {
+        if t < self.brake_until {
             self.brake
         } else {
             (0.6 * (self.target - v)).clamp(-3.5, 2.5)
-        };
-        let steer = self.steer(t, v.max(1.0), rng);
-        // Rounded to what a CAN log keeps.
-        ((accel * 1e3).round() / 1e3, (steer * 1e5).round() / 1e5)
+        }
     }
 
     fn steer(&mut self, t: f64, v: f64, rng: &mut ChaCha8Rng) -> f64 {
@@ -260,6 +406,9 @@ impl Driver {
             self.manoeuvre = match rng.random_range(0..4) {
                 0 => Manoeuvre::Straight {
                     until: t + rng.random_range(2.0..6.0),
+                },
+                1 | 2 if v < MIN_MANOEUVRE_SPEED => Manoeuvre::Straight {
+                    until: t + rng.random_range(1.0..3.0),
                 },
                 1 => Manoeuvre::LaneChange {
                     start: t,

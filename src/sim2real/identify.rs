@@ -6,11 +6,14 @@ use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
+use super::discover::discover;
 use super::fit::{Fit, FitOptions, evaluate, fit, standard_errors};
 use super::locate::{Mismatch, locate};
-use super::report::{Comparison, Report};
+use super::noise::NoiseLevels;
+use super::report::{Comparison, DiscoveredCandidate, Report};
 use super::simulate::{Candidate, StepError, batches};
-use super::windows::{Window, windows};
+use super::unexplained::{RegimeExcess, Unexplained, regime_excess};
+use super::windows::{Starts, Window, windows};
 use crate::backend::Backend;
 use crate::data::Recordings;
 use crate::error::{Error, Result};
@@ -41,6 +44,9 @@ pub struct Sim2RealOptions {
     /// Whether the commands were inferred from the motion (then effects acting on the
     /// commands cannot be identified and are not tried).
     pub commands_inferred: bool,
+    /// Whether equations found by the open-ended stage ([`super::discover`]) compete with
+    /// the catalogue (the regression is always run and reported).
+    pub discover: bool,
 }
 
 impl Default for Sim2RealOptions {
@@ -57,6 +63,7 @@ impl Default for Sim2RealOptions {
             effects: Effect::ALL.to_vec(),
             default_wheelbase_m: 2.8,
             commands_inferred: false,
+            discover: true,
         }
     }
 }
@@ -67,6 +74,9 @@ pub struct Outcome {
     pub heldout: Vec<Window>,
     pub baseline: Evaluated,
     pub final_model: Evaluated,
+    /// Short-window error against the noise floor by regime bin, baseline and final model.
+    pub excess_before: Vec<RegimeExcess>,
+    pub excess_after: Vec<RegimeExcess>,
 }
 
 /// Held-out errors of one model.
@@ -76,6 +86,8 @@ pub struct Evaluated {
 }
 
 struct Split {
+    train_tracks: Vec<usize>,
+    heldout_tracks: Vec<usize>,
     train: Vec<Window>,
     heldout: Vec<Window>,
     short: Vec<Window>,
@@ -103,6 +115,7 @@ fn split(recordings: &Recordings, options: &Sim2RealOptions) -> Result<Split> {
             options.stride_s,
             past,
             wb,
+            Starts::ClearOfCommandChanges,
         )
     };
     let (train, heldout) = (long(&train_tracks), long(&heldout_tracks));
@@ -114,6 +127,7 @@ fn split(recordings: &Recordings, options: &Sim2RealOptions) -> Result<Split> {
         options.short_window_s / 2.0,
         past,
         wb,
+        Starts::Regular,
     );
     if train.is_empty() || heldout.is_empty() {
         return Err(Error::invalid(
@@ -131,6 +145,8 @@ fn split(recordings: &Recordings, options: &Sim2RealOptions) -> Result<Split> {
         ));
     }
     Ok(Split {
+        train_tracks,
+        heldout_tracks,
         train,
         heldout,
         short,
@@ -153,8 +169,8 @@ pub fn identify(
     );
     let heldout_errors = |f: &Fit| evaluate(f, &held_b, split.heldout.len(), &plain);
     let nominal = |fit_wheelbase| Candidate {
-        effects: Vec::new(),
         fit_wheelbase,
+        ..Candidate::with_effects(Vec::new())
     };
     let fit_one = |candidate: &Candidate| -> Evaluated {
         let fitted = fit(candidate, &train_b, &autodiff, &options.fit);
@@ -185,10 +201,7 @@ pub fn identify(
     let singles: Vec<Evaluated> = tried
         .par_iter()
         .map(|&e| {
-            let mut out = fit_one(&Candidate {
-                effects: vec![e],
-                fit_wheelbase: true,
-            });
+            let mut out = fit_one(&Candidate::with_effects(vec![e]));
             standard_errors(&mut out.fit, &train_b, &split.train, &plain);
             progress(&format!("  fitted {e}"));
             out
@@ -204,32 +217,71 @@ pub fn identify(
         .collect();
     ranked.sort_by(|a, b| a.1.rmse_after_m.total_cmp(&b.1.rmse_after_m));
 
+    progress("discovery: sparse regression of the derivative residuals on the library");
+    let discovery = discover(
+        recordings,
+        &split.train_tracks,
+        &split.heldout_tracks,
+        options.default_wheelbase_m,
+        refit.fit.values[0],
+        options.commands_inferred,
+    );
+    let discovered = (options.discover && !discovery.terms().is_empty()).then(|| {
+        let mut out = fit_one(&Candidate {
+            discovered: discovery.terms(),
+            wheelbase_start: discovery.wheelbase_scale,
+            ..Candidate::with_effects(Vec::new())
+        });
+        standard_errors(&mut out.fit, &train_b, &split.train, &plain);
+        let comparison = compare(&out, &refit);
+        (out, comparison)
+    });
+
+    // The first finding: the best significant catalogue effect, unless a discovered equation
+    // beats it by the same parsimony rule (named hypotheses win ties).
+    let best_single = ranked
+        .first()
+        .filter(|(_, c)| c.significant)
+        .map(|(k, c)| (&singles[*k], c.clone()));
+    let first = match (best_single, &discovered) {
+        (Some((single, c)), Some((found, _))) if !compare(found, single).significant => {
+            Some((single, c))
+        }
+        (_, Some((found, c))) if c.significant => Some((found, c.clone())),
+        (Some((single, c)), _) => Some((single, c)),
+        _ => None,
+    };
     let mut chosen: Vec<(Evaluated, Comparison)> = Vec::new();
-    if let Some((best, comparison)) = ranked.first().filter(|(_, c)| c.significant) {
+    if let Some((first, comparison)) = first {
         let first = Evaluated {
-            fit: singles[*best].fit.clone(),
-            errors: singles[*best].errors.clone(),
+            fit: first.fit.clone(),
+            errors: first.errors.clone(),
         };
-        let first_effect = first.fit.candidate.effects[0];
-        // Pairs: the best effect with each runner-up that helped on its own.
-        let partners: Vec<Effect> = ranked[1..]
+        let base = first.fit.candidate.clone();
+        // Pairs: the first with each runner-up effect that helped on its own, and with the
+        // discovered terms.
+        let mut partners: Vec<Candidate> = ranked
             .iter()
             .filter(|(_, c)| c.significant)
-            .take(2)
             .map(|(k, _)| singles[*k].fit.candidate.effects[0])
-            .collect();
-        if !partners.is_empty() {
-            progress(&format!("{first_effect} helps; trying it in pairs"));
-        }
-        let pairs: Vec<Evaluated> = partners
-            .par_iter()
-            .map(|&e| {
-                fit_one(&Candidate {
-                    effects: vec![first_effect, e],
-                    fit_wheelbase: true,
-                })
+            .filter(|e| !base.effects.contains(e))
+            .take(2)
+            .map(|e| Candidate {
+                effects: [base.effects.clone(), vec![e]].concat(),
+                ..base.clone()
             })
             .collect();
+        if base.discovered.is_empty() && discovered.is_some() {
+            partners.push(Candidate {
+                discovered: discovery.terms(),
+                wheelbase_start: first.fit.values[0],
+                ..base.clone()
+            });
+        }
+        if !partners.is_empty() {
+            progress(&format!("{} helps; trying it in pairs", base.label()));
+        }
+        let pairs: Vec<Evaluated> = partners.par_iter().map(fit_one).collect();
         let best_pair = pairs
             .into_iter()
             .map(|p| {
@@ -238,7 +290,7 @@ pub fn identify(
             })
             .filter(|(_, c)| c.significant)
             .min_by(|a, b| a.1.rmse_after_m.total_cmp(&b.1.rmse_after_m));
-        chosen.push((first, comparison.clone()));
+        chosen.push((first, comparison));
         if let Some((mut pair, c)) = best_pair {
             standard_errors(&mut pair.fit, &train_b, &split.train, &plain);
             chosen.push((pair, c));
@@ -248,12 +300,13 @@ pub fn identify(
     progress("locating the mismatch");
     let short_errors = |f: &Fit| evaluate(f, &short_b, split.short.len(), &plain);
     let period = split.heldout[0].period;
+    let baseline_short = short_errors(&baseline.fit);
     let before: Mismatch = locate(
         recordings,
         &baseline.errors,
         period,
         &split.short,
-        &short_errors(&baseline.fit),
+        &baseline_short,
     );
     let final_model = match chosen.last() {
         Some((e, _)) => Evaluated {
@@ -265,12 +318,24 @@ pub fn identify(
             errors: refit.errors.clone(),
         },
     };
+    let final_short = short_errors(&final_model.fit);
     let after = locate(
         recordings,
         &final_model.errors,
         period,
         &split.short,
-        &short_errors(&final_model.fit),
+        &final_short,
+    );
+    let noise = NoiseLevels::estimate(&[split.train.as_slice(), &split.heldout].concat());
+    let excess_before = regime_excess(recordings, &noise, &split.short, &baseline_short);
+    let excess_after = regime_excess(recordings, &noise, &split.short, &final_short);
+    let unexplained = Unexplained::assess(
+        recordings,
+        noise,
+        &split.heldout,
+        &final_model.errors,
+        &split.short,
+        &final_short,
     );
     let report = Report::new(
         recordings,
@@ -286,11 +351,18 @@ pub fn identify(
         tried,
         before,
         after,
+        unexplained,
+        discovery,
+        discovered
+            .as_ref()
+            .map(|(e, c)| DiscoveredCandidate::new(e, c)),
     );
     Ok(Outcome {
         report,
         heldout: split.heldout,
         baseline,
         final_model,
+        excess_before,
+        excess_after,
     })
 }

@@ -7,12 +7,8 @@
 use serde::Serialize;
 
 use super::simulate::StepError;
-use super::windows::Window;
+use super::windows::{Window, command_changed};
 use crate::data::Recordings;
-
-/// A command counts as changed when it moves by more than this in one sample.
-const ACCEL_CHANGE: f64 = 0.3;
-const STEER_CHANGE: f64 = 0.005;
 
 /// RMS errors per channel.
 #[derive(Debug, Clone, Copy, Default, Serialize)]
@@ -37,6 +33,11 @@ impl ChannelRms {
             sums[3] += e.speed * e.speed;
             n += 1;
         }
+        Self::from_sums(sums, n)
+    }
+
+    /// From sums of squares (along, across, heading, speed) over `n` steps.
+    pub fn from_sums(sums: [f64; 4], n: usize) -> Self {
         let rms = |s: f64| if n == 0 { 0.0 } else { (s / n as f64).sqrt() };
         Self {
             n,
@@ -48,7 +49,7 @@ impl ChannelRms {
         }
     }
 
-    fn channel(&self, name: &str) -> f64 {
+    pub fn channel(&self, name: &str) -> f64 {
         match name {
             "along" => self.along_m,
             "across" => self.across_m,
@@ -110,9 +111,10 @@ pub struct Mismatch {
     pub by_time_in_track: Vec<RegimeBin>,
 }
 
-type Variable = (&'static str, &'static str, &'static [f64]);
+/// A regime variable: name, unit, bin edges.
+pub(super) type Variable = (&'static str, &'static str, &'static [f64]);
 
-const VARIABLES: [Variable; 5] = [
+pub(super) const VARIABLES: [Variable; 5] = [
     ("speed", "m/s", &[0.0, 10.0, 20.0, 30.0]),
     ("lateral_accel", "m/s^2", &[0.0, 0.5, 1.5, 3.0]),
     ("accel_cmd_abs", "m/s^2", &[0.0, 0.5, 1.5, 3.0]),
@@ -121,7 +123,7 @@ const VARIABLES: [Variable; 5] = [
 ];
 
 /// The regime variables of a window, in [`VARIABLES`] order.
-fn regime_values(recordings: &Recordings, w: &Window) -> [f64; 5] {
+pub(super) fn regime_values(recordings: &Recordings, w: &Window) -> [f64; 5] {
     let track = &recordings.tracks[w.track];
     let v = w.initial[3];
     let (accel, steer) = w.commands[0];
@@ -134,9 +136,7 @@ fn regime_values(recordings: &Recordings, w: &Window) -> [f64; 5] {
     let mut since = 0.0;
     let mut k = w.start;
     while k > 0 && since < 5.0 {
-        let changed = (track.accel_cmd[k] - track.accel_cmd[k - 1]).abs() > ACCEL_CHANGE
-            || (track.steer_cmd[k] - track.steer_cmd[k - 1]).abs() > STEER_CHANGE;
-        if changed {
+        if command_changed(track, k) {
             break;
         }
         since += w.period;
@@ -145,7 +145,7 @@ fn regime_values(recordings: &Recordings, w: &Window) -> [f64; 5] {
     [v.abs(), lateral, accel.abs(), rate, since]
 }
 
-fn bin_label(edges: &[f64], b: usize) -> String {
+pub(super) fn bin_label(edges: &[f64], b: usize) -> String {
     match edges.get(b + 1) {
         Some(hi) => format!("[{}, {})", edges[b], hi),
         None => format!(">= {}", edges[b]),

@@ -7,18 +7,21 @@
 //! parsimony selection on held-out tracks (pairs when one effect is not enough) → report.
 
 pub mod a9;
+pub mod discover;
 
 pub mod fit;
 pub mod generator;
 pub mod identify;
 pub mod locate;
+pub mod noise;
 pub mod plots;
 
 pub mod report;
 pub mod simulate;
+pub mod unexplained;
 pub mod windows;
 
 pub use crate::sim::catalogue::{DynamicsFile, Effect, FittedTerm};
-pub use generator::{GeneratorConfig, SensorNoise, generate};
+pub use generator::{GeneratorConfig, SensorNoise, Uncatalogued, generate};
 pub use identify::{Outcome, Sim2RealOptions, identify};
 pub use report::Report;

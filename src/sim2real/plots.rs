@@ -1,13 +1,16 @@
 //! Plots of a sim-to-real run (SVG, so they need no fonts): short-window position error by
-//! regime before and after, and the worst held-out windows simulated before and after
-//! against the recording.
+//! regime before and after, the same against the noise floor (the unexplained excess), every
+//! hypothesis's held-out error with the discovered equation beside the catalogue's fits, and
+//! the worst held-out windows simulated before and after against the recording.
 
 use std::path::{Path, PathBuf};
 
 use plotters::prelude::*;
 
-use super::identify::Evaluated;
+use super::identify::{Evaluated, Outcome};
 use super::locate::Mismatch;
+use super::report::Report;
+use super::unexplained::{RegimeExcess, UNEXPLAINED_RATIO};
 use super::windows::Window;
 use crate::error::{Error, Result};
 
@@ -15,25 +18,180 @@ fn plot_error(path: &Path, e: impl std::fmt::Display) -> Error {
     Error::InvalidArgument(format!("cannot draw {}: {e}", path.display()))
 }
 
-/// Writes `regimes.svg` and `tracks.svg` into `dir`; returns their paths.
-pub fn write_plots(
-    dir: &Path,
-    before: &Mismatch,
-    after: &Mismatch,
-    heldout: &[Window],
-    baseline: &Evaluated,
-    final_model: &Evaluated,
-) -> Result<Vec<PathBuf>> {
+/// Writes `regimes.svg`, `excess.svg`, `hypotheses.svg` and `tracks.svg` into `dir`;
+/// returns their paths.
+pub fn write_plots(dir: &Path, outcome: &Outcome) -> Result<Vec<PathBuf>> {
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    let report = &outcome.report;
     let regimes = dir.join("regimes.svg");
+    let excess = dir.join("excess.svg");
+    let hypotheses = dir.join("hypotheses.svg");
     let tracks = dir.join("tracks.svg");
     crate::io::atomic_write_with(&regimes, |tmp| {
-        draw_regimes(tmp, before, after).map_err(|e| plot_error(&regimes, e))
+        draw_regimes(tmp, &report.mismatch, &report.final_model.mismatch)
+            .map_err(|e| plot_error(&regimes, e))
+    })?;
+    crate::io::atomic_write_with(&excess, |tmp| {
+        draw_excess(tmp, &outcome.excess_before, &outcome.excess_after)
+            .map_err(|e| plot_error(&excess, e))
+    })?;
+    crate::io::atomic_write_with(&hypotheses, |tmp| {
+        draw_hypotheses(tmp, report).map_err(|e| plot_error(&hypotheses, e))
     })?;
     crate::io::atomic_write_with(&tracks, |tmp| {
-        draw_tracks(tmp, heldout, baseline, final_model).map_err(|e| plot_error(&tracks, e))
+        draw_tracks(
+            tmp,
+            &outcome.heldout,
+            &outcome.baseline,
+            &outcome.final_model,
+        )
+        .map_err(|e| plot_error(&tracks, e))
     })?;
-    Ok(vec![regimes, tracks])
+    Ok(vec![regimes, excess, hypotheses, tracks])
+}
+
+/// Per regime variable: each bin's short-window error over its noise floor, before and
+/// after, with the floor (1) and the "unexplained" bar (1.2) drawn.
+fn draw_excess(path: &Path, before: &[RegimeExcess], after: &[RegimeExcess]) -> DrawResult {
+    let mut variables: Vec<&str> = before.iter().map(|b| b.variable.as_str()).collect();
+    variables.dedup();
+    let root = SVGBackend::new(path, (1500, 340)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let panels = root.split_evenly((1, variables.len().max(1)));
+    for (panel, variable) in panels.iter().zip(&variables) {
+        let bins_of = |all: &[RegimeExcess]| -> Vec<RegimeExcess> {
+            all.iter()
+                .filter(|b| b.variable == *variable)
+                .cloned()
+                .collect()
+        };
+        let (b, a) = (bins_of(before), bins_of(after));
+        let top = b.iter().chain(&a).map(|x| x.ratio).fold(1.5, f64::max);
+        let unit = b.first().map_or("", |x| x.unit.as_str());
+        let mut chart = ChartBuilder::on(panel)
+            .caption(format!("{variable} ({unit})"), ("sans-serif", 16))
+            .margin(8)
+            .x_label_area_size(40)
+            .y_label_area_size(45)
+            .build_cartesian_2d(-0.5..(b.len() as f64 - 0.5), 0.0..top * 1.1)?;
+        let labels: Vec<String> = b.iter().map(|x| x.range.clone()).collect();
+        chart
+            .configure_mesh()
+            .x_labels(labels.len())
+            .x_label_formatter(&|x| {
+                let k = x.round();
+                if (x - k).abs() < 1e-6 && k >= 0.0 {
+                    labels.get(k as usize).cloned().unwrap_or_default()
+                } else {
+                    String::new()
+                }
+            })
+            .y_desc("error / noise floor")
+            .draw()?;
+        let width = b.len() as f64;
+        for (level, style) in [
+            (1.0, BLACK.stroke_width(1)),
+            (UNEXPLAINED_RATIO, BLACK.mix(0.4).stroke_width(1)),
+        ] {
+            chart.draw_series(LineSeries::new(
+                [(-0.5, level), (width - 0.5, level)],
+                style,
+            ))?;
+        }
+        for (bins, colour, offset, name) in [(&b, RED, -0.18, "before"), (&a, BLUE, 0.02, "after")]
+        {
+            chart
+                .draw_series(bins.iter().enumerate().map(|(k, bin)| {
+                    let x = k as f64 + offset;
+                    Rectangle::new([(x, 0.0), (x + 0.16, bin.ratio)], colour.filled())
+                }))?
+                .label(name)
+                .legend(move |(x, y)| {
+                    Rectangle::new([(x, y - 4), (x + 10, y + 4)], colour.filled())
+                });
+        }
+        chart.configure_series_labels().border_style(BLACK).draw()?;
+    }
+    root.present()?;
+    Ok(())
+}
+
+/// Held-out position RMSE of every hypothesis: baseline, nominal refit, each catalogue
+/// effect, the discovered equation (written out) and the final model, against the floor.
+fn draw_hypotheses(path: &Path, report: &Report) -> DrawResult {
+    let mut rows: Vec<(String, f64, RGBColor)> = vec![
+        ("baseline".into(), report.baseline.heldout_pos_rmse_m, RED),
+        (
+            "nominal refit".into(),
+            report.nominal_refit.heldout_pos_rmse_m,
+            RGBColor(120, 120, 120),
+        ),
+    ];
+    for c in &report.candidates {
+        let params: Vec<String> = c
+            .params
+            .iter()
+            .map(|(k, v)| format!("{k} {:.3}", v.value))
+            .collect();
+        rows.push((
+            format!("{} ({})", c.effect, params.join(", ")),
+            c.heldout_pos_rmse_m,
+            RGBColor(90, 140, 200),
+        ));
+    }
+    if let Some(d) = &report.discovered_candidate {
+        rows.push((
+            format!("discovered: {}", d.equation),
+            d.heldout_pos_rmse_m,
+            RGBColor(230, 140, 20),
+        ));
+    }
+    rows.push((
+        format!("final: {}", report.final_model.model),
+        report.final_model.heldout_pos_rmse_m,
+        BLUE,
+    ));
+    let top = rows
+        .iter()
+        .map(|r| r.1)
+        .fold(report.unexplained.floor_pos_m, f64::max)
+        * 1.1;
+    let height = 60 + 34 * rows.len() as u32;
+    let root = SVGBackend::new(path, (1500, height)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let (labels, bars) = root.split_horizontally(760);
+    let n = rows.len() as f64;
+    let mut chart = ChartBuilder::on(&bars)
+        .caption(
+            "held-out position RMSE (m); black: noise floor",
+            ("sans-serif", 16),
+        )
+        .margin(8)
+        .x_label_area_size(30)
+        .build_cartesian_2d(0.0..top, 0.0..n)?;
+    chart.configure_mesh().disable_y_mesh().draw()?;
+    let floor = report.unexplained.floor_pos_m;
+    chart.draw_series(LineSeries::new(
+        [(floor, 0.0), (floor, n)],
+        BLACK.stroke_width(2),
+    ))?;
+    chart.draw_series(rows.iter().enumerate().map(|(k, (_, rmse, colour))| {
+        let y = n - k as f64 - 1.0;
+        Rectangle::new([(0.0, y + 0.2), (*rmse, y + 0.8)], colour.filled())
+    }))?;
+    // Labels in the left area, one per bar (aligned with the chart's rows).
+    let plot_top = 8 + 24;
+    let row_height = (height as i32 - plot_top - 30 - 8) as f64 / n;
+    for (k, (label, rmse, _)) in rows.iter().enumerate() {
+        let y = plot_top + (row_height * (k as f64 + 0.35)) as i32;
+        labels.draw(&Text::new(
+            format!("{label}: {rmse:.3} m"),
+            (8, y),
+            ("sans-serif", 14),
+        ))?;
+    }
+    root.present()?;
+    Ok(())
 }
 
 type DrawResult = std::result::Result<(), Box<dyn std::error::Error>>;

@@ -4,13 +4,16 @@ use std::collections::BTreeMap;
 
 use serde::Serialize;
 
+use super::discover::Discovery;
 use super::fit::Fit;
 use super::identify::{Evaluated, Sim2RealOptions};
 use super::locate::{ChannelRms, Mismatch};
 use super::simulate::StepError;
+use super::unexplained::Unexplained;
 use super::windows::Window;
 use crate::data::Recordings;
-use crate::sim::catalogue::{DynamicsFile, Effect, FittedTerm};
+use crate::sim::catalogue::{DiscoveredTerm, DynamicsFile, Effect, FittedTerm};
+use crate::sim::library::{Equation, Feature};
 
 /// Held-out comparison of a model against a reference model, paired by track.
 #[derive(Debug, Clone, Serialize)]
@@ -86,6 +89,55 @@ pub struct Estimate {
 /// Fitted parameters of each effect, by name.
 type EffectEstimates = Vec<(Effect, BTreeMap<String, Estimate>)>;
 
+/// The discovered terms of a fit, with their refitted coefficients.
+fn discovered_estimates(fit: &Fit) -> Vec<DiscoveredEstimate> {
+    let n = fit.candidate.discovered.len();
+    let at = fit.values.len() - n;
+    fit.candidate
+        .discovered
+        .iter()
+        .enumerate()
+        .map(|(k, &(equation, feature, start))| DiscoveredEstimate {
+            equation,
+            feature,
+            regression_coefficient: start,
+            coefficient: Estimate {
+                value: fit.values[at + k],
+                std_error: fit.std_errors[at + k],
+            },
+            meaning: feature.meaning(equation, fit.values[at + k]),
+        })
+        .collect()
+}
+
+/// The discovered terms as equations, e.g. `dv/dt = u + 0.297 min(u, 0)`.
+pub fn equation_text(terms: &[DiscoveredEstimate]) -> String {
+    let mut lines = Vec::new();
+    for equation in [Equation::Speed, Equation::HeadingRate] {
+        let extra: Vec<String> = terms
+            .iter()
+            .filter(|t| t.equation == equation)
+            .map(|t| {
+                let c = t.coefficient.value;
+                let sign = if c < 0.0 { "-" } else { "+" };
+                format!("{sign} {:.4e} {}", c.abs(), t.feature.symbol())
+            })
+            .collect();
+        if !extra.is_empty() {
+            let nominal = match equation {
+                Equation::Speed => "u",
+                Equation::HeadingRate => "v tan(phi) / L",
+            };
+            lines.push(format!(
+                "{} = {nominal} {}",
+                equation.symbol(),
+                extra.join(" ")
+            ));
+        }
+    }
+    lines.join("; ")
+}
+
 /// The wheelbase scale and each effect's parameters of a fit.
 fn estimates(fit: &Fit) -> (Estimate, EffectEstimates) {
     let specs = fit.candidate.specs();
@@ -144,10 +196,28 @@ pub struct CandidateResult {
     pub significant: bool,
 }
 
+/// A discovered library term with its coefficient refitted through the rollout.
+#[derive(Debug, Clone, Serialize)]
+pub struct DiscoveredEstimate {
+    pub equation: Equation,
+    pub feature: Feature,
+    /// From the sparse regression on derivative residuals.
+    pub regression_coefficient: f64,
+    /// Refitted through the rollout, with its standard error.
+    pub coefficient: Estimate,
+    pub meaning: String,
+}
+
 #[derive(Debug, Clone, Serialize)]
 pub struct Finding {
-    pub effect: Effect,
-    pub description: &'static str,
+    /// The catalogue effect, or none for a discovered equation.
+    pub effect: Option<Effect>,
+    /// The effect's name, or `discovered`.
+    pub name: String,
+    pub description: String,
+    /// For a discovered equation: it in symbols, with the refitted coefficients.
+    pub equation: Option<String>,
+    pub discovered: Vec<DiscoveredEstimate>,
     pub params: BTreeMap<String, f64>,
     pub params_std_error: BTreeMap<String, f64>,
     /// Held-out error of the model with this and every earlier finding.
@@ -165,6 +235,8 @@ pub struct Final {
     pub wheelbase_scale: Estimate,
     /// Every identified term with the values fitted jointly in the final model.
     pub terms: Vec<FittedTerm>,
+    /// Discovered library terms in the final model, refitted jointly.
+    pub discovered: Vec<DiscoveredEstimate>,
     pub improvement_vs_baseline_pct: f64,
     pub mismatch: Mismatch,
 }
@@ -188,6 +260,38 @@ pub struct Report {
     pub not_identifiable: Vec<(Effect, String)>,
     #[serde(rename = "final")]
     pub final_model: Final,
+    /// The final model's held-out error against the noise floor.
+    pub unexplained: Unexplained,
+    /// The open-ended stage's sparse regression (whether or not it was kept).
+    pub discovery: Discovery,
+    /// The discovered equation refitted through the rollout as a candidate on its own, and
+    /// its held-out comparison with the nominal refit (none when nothing was selected).
+    pub discovered_candidate: Option<DiscoveredCandidate>,
+}
+
+/// The discovered equation as a candidate beside the catalogue's.
+#[derive(Debug, Clone, Serialize)]
+pub struct DiscoveredCandidate {
+    pub equation: String,
+    pub terms: Vec<DiscoveredEstimate>,
+    pub heldout_pos_rmse_m: f64,
+    pub improvement_pct: f64,
+    pub t_stat: f64,
+    pub significant: bool,
+}
+
+impl DiscoveredCandidate {
+    pub fn new(evaluated: &Evaluated, comparison: &Comparison) -> Self {
+        let terms = discovered_estimates(&evaluated.fit);
+        Self {
+            equation: equation_text(&terms),
+            terms,
+            heldout_pos_rmse_m: comparison.rmse_after_m,
+            improvement_pct: comparison.improvement_pct,
+            t_stat: comparison.t_stat,
+            significant: comparison.significant,
+        }
+    }
 }
 
 impl Report {
@@ -206,6 +310,9 @@ impl Report {
         tried: Vec<Effect>,
         before: Mismatch,
         after: Mismatch,
+        unexplained: Unexplained,
+        discovery: Discovery,
+        discovered_candidate: Option<DiscoveredCandidate>,
     ) -> Self {
         let baseline_rmse = rmse(&baseline.errors);
         let candidates = ranked
@@ -223,22 +330,46 @@ impl Report {
                 }
             })
             .collect();
+        let mut previous: Option<&Fit> = None;
         let findings = chosen
             .iter()
             .map(|(e, c)| {
-                let (_, effects) = estimates(&e.fit);
-                let (effect, params) = effects.last().cloned().expect("an effect");
-                Finding {
-                    effect,
-                    description: effect.description(),
-                    params: params.iter().map(|(k, v)| (k.clone(), v.value)).collect(),
-                    params_std_error: params
-                        .iter()
-                        .map(|(k, v)| (k.clone(), v.std_error))
-                        .collect(),
-                    heldout_pos_rmse_m: c.rmse_after_m,
-                    improvement_pct: c.improvement_pct,
-                    t_stat: c.t_stat,
+                let added_discovered = !e.fit.candidate.discovered.is_empty()
+                    && previous.is_none_or(|p| p.candidate.discovered.is_empty());
+                previous = Some(&e.fit);
+                if added_discovered {
+                    let terms = discovered_estimates(&e.fit);
+                    let meanings: Vec<&str> = terms.iter().map(|t| t.meaning.as_str()).collect();
+                    Finding {
+                        effect: None,
+                        name: "discovered".into(),
+                        description: meanings.join("; "),
+                        equation: Some(equation_text(&terms)),
+                        discovered: terms,
+                        params: BTreeMap::new(),
+                        params_std_error: BTreeMap::new(),
+                        heldout_pos_rmse_m: c.rmse_after_m,
+                        improvement_pct: c.improvement_pct,
+                        t_stat: c.t_stat,
+                    }
+                } else {
+                    let (_, effects) = estimates(&e.fit);
+                    let (effect, params) = effects.last().cloned().expect("an effect");
+                    Finding {
+                        effect: Some(effect),
+                        name: effect.name().into(),
+                        description: effect.description().into(),
+                        equation: None,
+                        discovered: Vec::new(),
+                        params: params.iter().map(|(k, v)| (k.clone(), v.value)).collect(),
+                        params_std_error: params
+                            .iter()
+                            .map(|(k, v)| (k.clone(), v.std_error))
+                            .collect(),
+                        heldout_pos_rmse_m: c.rmse_after_m,
+                        improvement_pct: c.improvement_pct,
+                        t_stat: c.t_stat,
+                    }
                 }
             })
             .collect();
@@ -297,9 +428,13 @@ impl Report {
                         params: params.into_iter().map(|(k, v)| (k, v.value)).collect(),
                     })
                     .collect(),
+                discovered: discovered_estimates(&final_model.fit),
                 improvement_vs_baseline_pct: 100.0 * (1.0 - final_rmse / baseline_rmse.max(1e-12)),
                 mismatch: after,
             },
+            unexplained,
+            discovery,
+            discovered_candidate,
         }
     }
 
@@ -307,6 +442,16 @@ impl Report {
     pub fn dynamics(&self) -> DynamicsFile {
         DynamicsFile {
             terms: self.final_model.terms.clone(),
+            discovered: self
+                .final_model
+                .discovered
+                .iter()
+                .map(|t| DiscoveredTerm {
+                    equation: t.equation,
+                    feature: t.feature,
+                    coefficient: t.coefficient.value,
+                })
+                .collect(),
         }
     }
 
@@ -348,26 +493,54 @@ impl Report {
             wb.value, wb.std_error, self.nominal_refit.heldout_pos_rmse_m
         ));
         if self.findings.is_empty() {
-            lines.push(
-                "findings: none. No catalogue effect lowers held-out error by a clear margin; \
-                 the nominal model explains these recordings"
-                    .into(),
-            );
+            lines.push(if self.unexplained.at_floor {
+                "findings: none. No catalogue effect lowers held-out error by a clear margin, \
+                 and the nominal model's error is at the noise floor: it explains these \
+                 recordings"
+                    .into()
+            } else {
+                "findings: none from the catalogue. No catalogue effect lowers held-out error \
+                 by a clear margin, yet the error stays above the noise floor (see \
+                 unexplained)"
+                    .into()
+            });
         }
         for f in &self.findings {
-            let params: Vec<String> = f
-                .params
-                .iter()
-                .map(|(k, v)| format!("{k} = {v:.4} +- {:.4}", f.params_std_error[k]))
-                .collect();
+            let params: Vec<String> = match &f.equation {
+                Some(equation) => vec![equation.clone()],
+                None => f
+                    .params
+                    .iter()
+                    .map(|(k, v)| format!("{k} = {v:.4} +- {:.4}", f.params_std_error[k]))
+                    .collect(),
+            };
             lines.push(format!(
                 "finding: {} ({}), {}: held-out {:.3} m, -{:.1} %",
-                f.effect,
+                f.name,
                 f.description,
                 params.join(", "),
                 f.heldout_pos_rmse_m,
                 f.improvement_pct
             ));
+        }
+        if self.findings.iter().all(|f| f.effect.is_some()) {
+            let regression: Vec<String> = self
+                .discovery
+                .terms()
+                .iter()
+                .map(|(e, f, c)| format!("{} += {c:.4e} {}", e.symbol(), f.symbol()))
+                .collect();
+            if !regression.is_empty() {
+                let why = if self.options.discover {
+                    "it did not beat the catalogue on held-out tracks"
+                } else {
+                    "catalogue only"
+                };
+                lines.push(format!(
+                    "discovery (not kept: {why}): {}",
+                    regression.join(", ")
+                ));
+            }
         }
         for (e, why) in &self.not_identifiable {
             lines.push(format!("not identifiable: {e}: {why}"));
@@ -378,6 +551,7 @@ impl Report {
             self.final_model.heldout_pos_rmse_m,
             self.final_model.improvement_vs_baseline_pct
         ));
+        lines.extend(self.unexplained.summary());
         lines
     }
 }

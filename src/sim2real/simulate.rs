@@ -7,6 +7,7 @@ use burn::tensor::TensorData;
 
 use super::windows::Window;
 use crate::sim::catalogue::{Effect, ParamSpec, bounded};
+use crate::sim::library::{Equation, Feature, LibraryTerm};
 use crate::sim::{Controls, Dynamics, Integrator, VehicleState};
 
 /// The wheelbase is fitted as a scale on the declared one, within +-30 %.
@@ -27,27 +28,60 @@ const MAX_SUBSTEP_S: f64 = 0.1;
 pub const HEADING_WEIGHT_M: f64 = 10.0;
 pub const SPEED_WEIGHT_S: f64 = 1.0;
 
-/// A model to fit: the nominal bicycle, optionally with its wheelbase free, plus effects.
-#[derive(Debug, Clone, PartialEq, Eq)]
+/// A model to fit: the nominal bicycle, optionally with its wheelbase free, plus catalogue
+/// effects and discovered library terms (each started at its regression coefficient).
+#[derive(Debug, Clone, PartialEq)]
 pub struct Candidate {
     pub effects: Vec<Effect>,
     pub fit_wheelbase: bool,
+    /// Where the wheelbase scale starts (1 = as declared).
+    pub wheelbase_start: f64,
+    pub discovered: Vec<(Equation, Feature, f64)>,
 }
 
 impl Candidate {
-    /// Specs of the raw parameter vector: wheelbase scale first, then each effect's.
+    /// The nominal bicycle plus `effects`, wheelbase free.
+    pub fn with_effects(effects: Vec<Effect>) -> Self {
+        Self {
+            effects,
+            fit_wheelbase: true,
+            wheelbase_start: WHEELBASE_SCALE.start,
+            discovered: Vec::new(),
+        }
+    }
+
+    /// Specs of the raw parameter vector: wheelbase scale first, then each effect's, then
+    /// each discovered term's coefficient (free to shrink to zero, change sign or triple).
     pub fn specs(&self) -> Vec<ParamSpec> {
-        std::iter::once(WHEELBASE_SCALE)
+        let wheelbase = ParamSpec {
+            start: self.wheelbase_start,
+            ..WHEELBASE_SCALE
+        };
+        std::iter::once(wheelbase)
             .chain(self.effects.iter().flat_map(|e| e.params().iter().copied()))
+            .chain(
+                self.discovered
+                    .iter()
+                    .map(|&(_, feature, start)| ParamSpec {
+                        name: feature.symbol(),
+                        unit: "",
+                        min: start - 2.0 * start.abs(),
+                        max: start + 2.0 * start.abs(),
+                        start,
+                    }),
+            )
             .collect()
     }
 
-    /// Display name: effects joined by `+`, or `nominal`.
+    /// Display name: effects joined by `+` (discovered terms as `discovered`), or `nominal`.
     pub fn label(&self) -> String {
-        if self.effects.is_empty() {
+        let mut names: Vec<&str> = self.effects.iter().map(|e| e.name()).collect();
+        if !self.discovered.is_empty() {
+            names.push("discovered");
+        }
+        if names.is_empty() {
             "nominal".into()
         } else {
-            let names: Vec<&str> = self.effects.iter().map(|e| e.name()).collect();
             names.join("+")
         }
     }
@@ -157,6 +191,15 @@ impl WindowBatch {
             let n = effect.params().len();
             dynamics = dynamics.with_term(effect.term(&params[at..at + n], self.period));
             at += n;
+        }
+        if !candidate.discovered.is_empty() {
+            let terms = candidate
+                .discovered
+                .iter()
+                .zip(&params[at..])
+                .map(|(&(equation, feature, _), c)| (equation, feature, c.clone()))
+                .collect();
+            dynamics = dynamics.with_term(Box::new(LibraryTerm { terms }));
         }
         dynamics
     }

@@ -1,0 +1,360 @@
+//! Open-ended discovery (SINDy): what the catalogue lacks, found as a sparse equation.
+//!
+//! At every sample of a track where no command jumps within the denoising span, local
+//! quadratic fits give the speed, its rate and the yaw rate. Their residuals against the
+//! nominal bicycle (`dv/dt - u`, `dtheta/dt - v tan(phi) / L`) are regressed on the library
+//! of [`crate::sim::library`] by sequentially thresholded least squares (Brunton et al.,
+//! PNAS 2016). The threshold is chosen on held-out tracks: the sparsest selection whose
+//! held-out error is within 2 % of the best. The selection then becomes a simulator term
+//! whose coefficients are refitted through the rollout ([`super::identify`]).
+
+use nalgebra::{DMatrix, DVector};
+use serde::Serialize;
+
+use super::windows::{DENOISE_HALF_WIDTH_S, command_changed, quadratic_at_zero, unwrap};
+use crate::data::Recordings;
+use crate::sim::library::{Equation, Feature};
+
+/// Samples slower than this (m/s) are left out: at rest the derivatives carry no physics
+/// beyond the standstill the simulator already has.
+const MIN_SPEED_M_S: f64 = 1.0;
+
+/// Thresholds tried, as a share of the residual's RMS: a term is kept only if its typical
+/// contribution is at least this large.
+const THRESHOLDS: [f64; 8] = [0.01, 0.02, 0.05, 0.1, 0.15, 0.2, 0.3, 0.5];
+
+/// A selection must cut the held-out residual's mean square by this share to count.
+const MIN_GAIN: f64 = 0.05;
+
+/// One sample's regression data.
+#[derive(Debug, Clone, Copy)]
+struct Sample {
+    track: usize,
+    v: f64,
+    u: f64,
+    phi: f64,
+    /// dv/dt - u.
+    speed_residual: f64,
+    /// dtheta/dt - v tan(phi) / L.
+    heading_residual: f64,
+}
+
+/// What was selected for one equation.
+#[derive(Debug, Clone, Serialize)]
+pub struct EquationFit {
+    pub equation: Equation,
+    /// Selected features and their least-squares coefficients.
+    pub terms: Vec<(Feature, f64)>,
+    /// Threshold chosen (share of the residual's RMS).
+    pub threshold: f64,
+    /// Held-out mean square of the residual before and after the selection.
+    pub heldout_ms_before: f64,
+    pub heldout_ms_after: f64,
+    pub training_samples: usize,
+    pub heldout_samples: usize,
+}
+
+/// Sparse regressions of both equations.
+#[derive(Debug, Clone, Serialize)]
+pub struct Discovery {
+    pub equations: Vec<EquationFit>,
+    /// The wheelbase scale the heading regression implies. Its `v tan(phi)` column (always
+    /// kept, never a discovered term) absorbs what the refitted wheelbase got wrong while
+    /// the missing physics was unmodelled; the rollout refit starts from this value.
+    pub wheelbase_scale: f64,
+}
+
+impl Discovery {
+    /// Every selected (equation, feature, coefficient).
+    pub fn terms(&self) -> Vec<(Equation, Feature, f64)> {
+        self.equations
+            .iter()
+            .flat_map(|e| e.terms.iter().map(|&(f, c)| (e.equation, f, c)))
+            .collect()
+    }
+}
+
+/// Runs the regression on `train` tracks and chooses sparsity on `heldout` tracks; the
+/// nominal model's wheelbase is each track's declared one times `wheelbase_scale`. With
+/// `commands_inferred`, terms in the commands are left out of the library: whatever the
+/// actuators did is already in commands inferred from the motion.
+pub fn discover(
+    recordings: &Recordings,
+    train: &[usize],
+    heldout: &[usize],
+    default_wheelbase: f64,
+    wheelbase_scale: f64,
+    commands_inferred: bool,
+) -> Discovery {
+    let all: Vec<usize> = train.iter().chain(heldout).copied().collect();
+    let samples = samples(recordings, &all, default_wheelbase, wheelbase_scale);
+    let (fit_set, check_set): (Vec<Sample>, Vec<Sample>) =
+        samples.into_iter().partition(|s| train.contains(&s.track));
+    let library = |equation| -> Vec<Feature> {
+        Feature::library(equation)
+            .iter()
+            .copied()
+            .filter(|f| !(commands_inferred && f.involves_commands()))
+            .collect()
+    };
+    let (speed, _) = select(
+        Equation::Speed,
+        &library(Equation::Speed),
+        &fit_set,
+        &check_set,
+    );
+    let (heading, kappa) = select(
+        Equation::HeadingRate,
+        &library(Equation::HeadingRate),
+        &fit_set,
+        &check_set,
+    );
+    // dtheta/dt = v tan(phi) (1 / L + c): the wheelbase becomes L / (1 + c L).
+    let wheelbase = default_wheelbase * wheelbase_scale;
+    Discovery {
+        equations: vec![speed, heading],
+        wheelbase_scale: wheelbase_scale / (1.0 + kappa * wheelbase).max(0.5),
+    }
+}
+
+fn samples(
+    recordings: &Recordings,
+    tracks: &[usize],
+    default_wheelbase: f64,
+    wheelbase_scale: f64,
+) -> Vec<Sample> {
+    let mut out = Vec::new();
+    for &index in tracks {
+        let track = &recordings.tracks[index];
+        let half = ((DENOISE_HALF_WIDTH_S / track.period).round() as usize).max(2);
+        if track.len() < 2 * half + 1 {
+            continue;
+        }
+        let wheelbase = track.wheelbase.unwrap_or(default_wheelbase) * wheelbase_scale;
+        let heading = unwrap(&track.heading);
+        for k in half..track.len() - half {
+            if (k + 1 - half..=k + half).any(|j| command_changed(track, j)) {
+                continue;
+            }
+            let span = k - half..k + half + 1;
+            let times: Vec<f64> = track.t[span.clone()]
+                .iter()
+                .map(|t| t - track.t[k])
+                .collect();
+            let speed = quadratic_at_zero(&times, &track.speed[span.clone()]);
+            if speed.value < MIN_SPEED_M_S {
+                continue;
+            }
+            let yaw = quadratic_at_zero(&times, &heading[span]);
+            let (u, phi) = (track.accel_cmd[k], track.steer_cmd[k]);
+            out.push(Sample {
+                track: index,
+                v: speed.value,
+                u,
+                phi,
+                speed_residual: speed.slope - u,
+                heading_residual: yaw.slope - speed.value * phi.tan() / wheelbase,
+            });
+        }
+    }
+    out
+}
+
+/// Nuisance columns ahead of the library: the heading equation's `v tan(phi)` (a wheelbase
+/// correction, see [`Discovery::wheelbase_scale`]).
+fn nuisance(equation: Equation) -> usize {
+    match equation {
+        Equation::Speed => 0,
+        Equation::HeadingRate => 1,
+    }
+}
+
+fn design(
+    equation: Equation,
+    library: &[Feature],
+    samples: &[Sample],
+) -> (DMatrix<f64>, DVector<f64>) {
+    let extra = nuisance(equation);
+    let x = DMatrix::from_fn(samples.len(), extra + library.len(), |r, c| {
+        let s = &samples[r];
+        match c.checked_sub(extra) {
+            Some(c) => library[c].value(s.v, s.u, s.phi),
+            None => s.v * s.phi.tan(),
+        }
+    });
+    let y = DVector::from_iterator(
+        samples.len(),
+        samples.iter().map(|s| match equation {
+            Equation::Speed => s.speed_residual,
+            Equation::HeadingRate => s.heading_residual,
+        }),
+    );
+    (x, y)
+}
+
+/// The equation's selection, and the nuisance coefficient (0 for the speed equation).
+fn select(
+    equation: Equation,
+    library: &[Feature],
+    train: &[Sample],
+    heldout: &[Sample],
+) -> (EquationFit, f64) {
+    let (x, y) = design(equation, library, train);
+    let (xh, yh) = design(equation, library, heldout);
+    let ms = |r: DVector<f64>| r.norm_squared() / r.len().max(1) as f64;
+    let extra = nuisance(equation);
+    // The baseline: nuisance columns only.
+    let base = stlsq(&x.columns(0, extra).into_owned(), &y, 0.0, extra);
+    let before = ms(&yh - xh.columns(0, extra) * DVector::from_column_slice(&base));
+    let mut best: Option<(f64, Vec<f64>, f64)> = None;
+    let mut candidates = Vec::new();
+    for &threshold in &THRESHOLDS {
+        let coef = stlsq(&x, &y, threshold, extra);
+        let after = ms(&yh - &xh * DVector::from_column_slice(&coef));
+        if best.as_ref().is_none_or(|b| after < b.0) {
+            best = Some((after, coef.clone(), threshold));
+        }
+        candidates.push((threshold, coef, after));
+    }
+    let empty = EquationFit {
+        equation,
+        terms: Vec::new(),
+        threshold: f64::NAN,
+        heldout_ms_before: before,
+        heldout_ms_after: before,
+        training_samples: train.len(),
+        heldout_samples: heldout.len(),
+    };
+    let base_nuisance = base.first().copied().unwrap_or(0.0);
+    let Some((best_ms, _, _)) = best else {
+        return (empty, base_nuisance);
+    };
+    // The sparsest selection within 2 % of the best held-out error (thresholds ascend).
+    let Some((threshold, coef, after)) = candidates
+        .into_iter()
+        .rev()
+        .find(|(_, _, after)| *after <= best_ms * 1.02)
+    else {
+        return (empty, base_nuisance);
+    };
+    let (nuisance_coef, coef) = coef.split_at(extra);
+    if after > before * (1.0 - MIN_GAIN) || coef.iter().all(|&c| c == 0.0) {
+        return (empty, base_nuisance);
+    }
+    let fit = EquationFit {
+        terms: library
+            .iter()
+            .zip(coef)
+            .filter(|(_, c)| **c != 0.0)
+            .map(|(&f, &c)| (f, c))
+            .collect(),
+        threshold,
+        heldout_ms_after: after,
+        ..empty
+    };
+    (fit, nuisance_coef.first().copied().unwrap_or(0.0))
+}
+
+/// Sequentially thresholded least squares on columns scaled to unit RMS: terms whose typical
+/// contribution falls below `threshold` x RMS(y) are dropped and the rest refitted, until
+/// the selection stops changing; the first `keep` columns are never dropped. Coefficients
+/// are returned in the original units.
+fn stlsq(x: &DMatrix<f64>, y: &DVector<f64>, threshold: f64, keep: usize) -> Vec<f64> {
+    let n = x.nrows().max(1) as f64;
+    let scale: Vec<f64> = (0..x.ncols())
+        .map(|c| (x.column(c).norm_squared() / n).sqrt().max(1e-12))
+        .collect();
+    let cut = threshold * (y.norm_squared() / n).sqrt();
+    let mut active: Vec<usize> = (0..x.ncols()).collect();
+    let mut coef = vec![0.0; x.ncols()];
+    for _ in 0..10 {
+        if active.is_empty() {
+            break;
+        }
+        let z = DMatrix::from_fn(x.nrows(), active.len(), |r, c| {
+            x[(r, active[c])] / scale[active[c]]
+        });
+        let Ok(beta) = z.clone().svd(true, true).solve(y, 1e-10) else {
+            break;
+        };
+        coef = vec![0.0; x.ncols()];
+        for (k, &c) in active.iter().enumerate() {
+            coef[c] = beta[k] / scale[c];
+        }
+        let kept: Vec<usize> = active
+            .iter()
+            .enumerate()
+            .filter(|(k, c)| **c < keep || beta[*k].abs() >= cut)
+            .map(|(_, &c)| c)
+            .collect();
+        if kept.len() == active.len() {
+            break;
+        }
+        for (c, value) in coef.iter_mut().enumerate() {
+            if !kept.contains(&c) {
+                *value = 0.0;
+            }
+        }
+        active = kept;
+    }
+    coef
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stlsq_keeps_the_true_terms_and_drops_the_rest() {
+        // y = 0.3 min(u, 0) - 0.0005 v^2 plus small noise, over varied v and u.
+        let mut samples = Vec::new();
+        for i in 0..400 {
+            let v = 2.0 + (i % 37) as f64;
+            let u = ((i * 7919) % 101) as f64 / 101.0 * 6.0 - 3.5;
+            let noise = (((i * 104729) % 1000) as f64 / 1000.0 - 0.5) * 0.02;
+            samples.push(Sample {
+                track: i % 4,
+                v,
+                u,
+                phi: 0.0,
+                speed_residual: 0.3 * u.min(0.0) - 0.0005 * v * v + noise,
+                heading_residual: 0.0,
+            });
+        }
+        let (train, heldout): (Vec<Sample>, Vec<Sample>) =
+            samples.into_iter().partition(|s| s.track != 3);
+        let (fit, _) = select(
+            Equation::Speed,
+            Feature::library(Equation::Speed),
+            &train,
+            &heldout,
+        );
+        let terms: Vec<Feature> = fit.terms.iter().map(|t| t.0).collect();
+        assert_eq!(terms, vec![Feature::V2, Feature::UBrake], "{fit:?}");
+        assert!((fit.terms[1].1 - 0.3).abs() < 0.01, "{fit:?}");
+        assert!((fit.terms[0].1 + 0.0005).abs() < 5e-5, "{fit:?}");
+    }
+
+    #[test]
+    fn pure_noise_selects_nothing() {
+        let samples: Vec<Sample> = (0..400)
+            .map(|i| Sample {
+                track: i % 4,
+                v: 2.0 + (i % 37) as f64,
+                u: ((i * 7919) % 101) as f64 / 101.0 * 6.0 - 3.5,
+                phi: 0.0,
+                speed_residual: (((i * 104729) % 1000) as f64 / 1000.0 - 0.5) * 0.2,
+                heading_residual: 0.0,
+            })
+            .collect();
+        let (train, heldout): (Vec<Sample>, Vec<Sample>) =
+            samples.into_iter().partition(|s| s.track != 3);
+        let (fit, _) = select(
+            Equation::Speed,
+            Feature::library(Equation::Speed),
+            &train,
+            &heldout,
+        );
+        assert!(fit.terms.is_empty(), "{fit:?}");
+    }
+}
