@@ -330,3 +330,40 @@ fn a_run_file_names_a_dynamics_file_relative_to_itself() {
         "{message}"
     );
 }
+
+#[test]
+fn on_the_real_a9_recording_only_what_the_data_can_show_is_tried() {
+    // Commands are inferred from the drone tracks: effects on the commands, and discovered
+    // terms in them, cannot be told from the commands themselves.
+    let dataset =
+        rtr::data::A9Dataset::load(&rtr::data::a9::default_dir()).expect("shipped A9 data");
+    let recordings = rtr::sim2real::a9::a9_recordings(&dataset, 0.1, 7.0);
+    let mut options = Sim2RealOptions {
+        commands_inferred: true,
+        ..Default::default()
+    };
+    // Honesty of what is tried is the point here, not the quality of the fits.
+    options.fit.iterations = 20;
+    let report = identify(&recordings, &options, &|_| {})
+        .expect("identification runs")
+        .report;
+    let summary = report.summary().join("\n");
+    for effect in Effect::ALL.into_iter().filter(|e| e.acts_on_commands()) {
+        assert!(
+            report.not_identifiable.iter().any(|(e, _)| *e == effect),
+            "{effect} should not be identifiable\n{summary}"
+        );
+        assert!(report.candidates.iter().all(|c| c.effect != effect));
+    }
+    assert!(
+        report
+            .discovery
+            .terms()
+            .iter()
+            .all(|(_, feature, _)| !feature.involves_commands()),
+        "{summary}"
+    );
+    // The along-track mismatch of the tracked acceleration is reported, not hidden.
+    assert!(report.baseline.heldout_pos_rmse_m > 0.5, "{summary}");
+    assert!(!report.unexplained.at_floor, "{summary}");
+}
