@@ -66,51 +66,18 @@ fn draw_excess(path: &Path, before: &[RegimeExcess], after: &[RegimeExcess]) -> 
                 .collect()
         };
         let (b, a) = (bins_of(before), bins_of(after));
-        let top = b.iter().chain(&a).map(|x| x.ratio).fold(1.5, f64::max);
         let unit = b.first().map_or("", |x| x.unit.as_str());
-        let mut chart = ChartBuilder::on(panel)
-            .caption(format!("{variable} ({unit})"), ("sans-serif", 16))
-            .margin(8)
-            .x_label_area_size(40)
-            .y_label_area_size(45)
-            .build_cartesian_2d(-0.5..(b.len() as f64 - 0.5), 0.0..top * 1.1)?;
-        let labels: Vec<String> = b.iter().map(|x| x.range.clone()).collect();
-        chart
-            .configure_mesh()
-            .x_labels(labels.len())
-            .x_label_formatter(&|x| {
-                let k = x.round();
-                if (x - k).abs() < 1e-6 && k >= 0.0 {
-                    labels.get(k as usize).cloned().unwrap_or_default()
-                } else {
-                    String::new()
-                }
-            })
-            .y_desc("error / noise floor")
-            .draw()?;
-        let width = b.len() as f64;
-        for (level, style) in [
-            (1.0, BLACK.stroke_width(1)),
-            (UNEXPLAINED_RATIO, BLACK.mix(0.4).stroke_width(1)),
-        ] {
-            chart.draw_series(LineSeries::new(
-                [(-0.5, level), (width - 0.5, level)],
-                style,
-            ))?;
-        }
-        for (bins, colour, offset, name) in [(&b, RED, -0.18, "before"), (&a, BLUE, 0.02, "after")]
-        {
-            chart
-                .draw_series(bins.iter().enumerate().map(|(k, bin)| {
-                    let x = k as f64 + offset;
-                    Rectangle::new([(x, 0.0), (x + 0.16, bin.ratio)], colour.filled())
-                }))?
-                .label(name)
-                .legend(move |(x, y)| {
-                    Rectangle::new([(x, y - 4), (x + 10, y + 4)], colour.filled())
-                });
-        }
-        chart.configure_series_labels().border_style(BLACK).draw()?;
+        bin_panel(
+            panel,
+            &format!("{variable} ({unit})"),
+            "error / noise floor",
+            &b.iter().map(|x| x.range.clone()).collect::<Vec<_>>(),
+            [
+                &b.iter().map(|x| x.ratio).collect::<Vec<_>>(),
+                &a.iter().map(|x| x.ratio).collect::<Vec<_>>(),
+            ],
+            &[1.0, UNEXPLAINED_RATIO],
+        )?;
     }
     root.present()?;
     Ok(())
@@ -196,52 +163,78 @@ fn draw_hypotheses(path: &Path, report: &Report) -> DrawResult {
 
 type DrawResult = std::result::Result<(), Box<dyn std::error::Error>>;
 
+/// One panel of bars per bin (`labels`), before (red) and after (blue), with horizontal
+/// reference lines at `levels`.
+fn bin_panel(
+    panel: &DrawingArea<SVGBackend, plotters::coord::Shift>,
+    caption: &str,
+    y_desc: &str,
+    labels: &[String],
+    [before, after]: [&[f64]; 2],
+    levels: &[f64],
+) -> DrawResult {
+    let top = before
+        .iter()
+        .chain(after)
+        .chain(levels)
+        .fold(0.01, |a, &b| f64::max(a, b));
+    let width = labels.len() as f64;
+    let mut chart = ChartBuilder::on(panel)
+        .caption(caption, ("sans-serif", 16))
+        .margin(8)
+        .x_label_area_size(40)
+        .y_label_area_size(45)
+        .build_cartesian_2d(-0.5..(width - 0.5), 0.0..top * 1.1)?;
+    chart
+        .configure_mesh()
+        .x_labels(labels.len())
+        .x_label_formatter(&|x| {
+            let k = x.round();
+            if (x - k).abs() < 1e-6 && k >= 0.0 {
+                labels.get(k as usize).cloned().unwrap_or_default()
+            } else {
+                String::new()
+            }
+        })
+        .y_desc(y_desc)
+        .draw()?;
+    for &level in levels {
+        chart.draw_series(LineSeries::new(
+            [(-0.5, level), (width - 0.5, level)],
+            BLACK.mix(0.6).stroke_width(1),
+        ))?;
+    }
+    for (values, colour, offset, name) in
+        [(before, RED, -0.18, "before"), (after, BLUE, 0.02, "after")]
+    {
+        chart
+            .draw_series(values.iter().enumerate().map(|(k, &value)| {
+                let x = k as f64 + offset;
+                Rectangle::new([(x, 0.0), (x + 0.16, value)], colour.filled())
+            }))?
+            .label(name)
+            .legend(move |(x, y)| Rectangle::new([(x, y - 4), (x + 10, y + 4)], colour.filled()));
+    }
+    chart.configure_series_labels().border_style(BLACK).draw()?;
+    Ok(())
+}
+
 fn draw_regimes(path: &Path, before: &Mismatch, after: &Mismatch) -> DrawResult {
     let root = SVGBackend::new(path, (1500, 320)).into_drawing_area();
     root.fill(&WHITE)?;
     let panels = root.split_evenly((1, before.regimes.len().max(1)));
     for (panel, (b, a)) in panels.iter().zip(before.regimes.iter().zip(&after.regimes)) {
-        let top = b
-            .bins
-            .iter()
-            .chain(&a.bins)
-            .map(|x| x.rms.pos_m)
-            .fold(0.01, f64::max);
-        let mut chart = ChartBuilder::on(panel)
-            .caption(format!("{} ({})", b.variable, b.unit), ("sans-serif", 16))
-            .margin(8)
-            .x_label_area_size(40)
-            .y_label_area_size(45)
-            .build_cartesian_2d(-0.5..(b.bins.len() as f64 - 0.5), 0.0..top * 1.1)?;
-        let labels: Vec<String> = b.bins.iter().map(|x| x.range.clone()).collect();
-        chart
-            .configure_mesh()
-            .x_labels(labels.len())
-            .x_label_formatter(&|x| {
-                let k = x.round();
-                if (x - k).abs() < 1e-6 && k >= 0.0 {
-                    labels.get(k as usize).cloned().unwrap_or_default()
-                } else {
-                    String::new()
-                }
-            })
-            .y_desc("position RMSE (m)")
-            .draw()?;
-        for (bins, colour, offset, name) in [
-            (&b.bins, RED, -0.18, "before"),
-            (&a.bins, BLUE, 0.02, "after"),
-        ] {
-            chart
-                .draw_series(bins.iter().enumerate().map(|(k, bin)| {
-                    let x = k as f64 + offset;
-                    Rectangle::new([(x, 0.0), (x + 0.16, bin.rms.pos_m)], colour.filled())
-                }))?
-                .label(name)
-                .legend(move |(x, y)| {
-                    Rectangle::new([(x, y - 4), (x + 10, y + 4)], colour.filled())
-                });
-        }
-        chart.configure_series_labels().border_style(BLACK).draw()?;
+        bin_panel(
+            panel,
+            &format!("{} ({})", b.variable, b.unit),
+            "position RMSE (m)",
+            &b.bins.iter().map(|x| x.range.clone()).collect::<Vec<_>>(),
+            [
+                &b.bins.iter().map(|x| x.rms.pos_m).collect::<Vec<_>>(),
+                &a.bins.iter().map(|x| x.rms.pos_m).collect::<Vec<_>>(),
+            ],
+            &[],
+        )?;
     }
     root.present()?;
     Ok(())
