@@ -532,7 +532,8 @@ impl Report {
                 .collect();
             if !regression.is_empty() {
                 let why = if self.options.discover {
-                    "it did not beat the catalogue on held-out tracks"
+                    "on held-out tracks it did not pass the parsimony rule against the nominal \
+                     refit, or did not beat the catalogue's best by it"
                 } else {
                     "catalogue only"
                 };
