@@ -258,13 +258,12 @@ fn invalid_family_files_name_the_file_the_place_and_what_was_expected() {
     assert!(err.contains("line"), "{err}");
 }
 
-/// Collision rate (% of policy-driven agents) of the IDM reference driver on `scenes`, and
-/// the number of agents; with `targets_only`, only agent 0 of each scene (a scenario's target).
-fn idm_collision_pct(
+/// `scenes` rolled out under the IDM reference driver, with the scenarios' heroes scripted
+/// when given; and the batch.
+fn idm_rollout(
     scenes: &[&Scene],
     scenarios: Option<&[&ConcreteScenario]>,
-    targets_only: bool,
-) -> (f64, usize) {
+) -> (rtr::sim::Rollout, SceneBatch) {
     #[allow(deprecated)]
     let device = Device::ndarray();
     let batch = SceneBatch::from_scenes(scenes, &device).unwrap();
@@ -280,10 +279,21 @@ fn idm_collision_pct(
                 script: &mut heroes,
                 mask: batch.agent_hero.clone(),
             };
-            rollout(scenes, &batch, &dynamics, &mut policy, &mut caches, &config).unwrap()
+            rollout(scenes, &batch, &dynamics, &mut policy, &mut caches, &config)
         }
-        None => rollout(scenes, &batch, &dynamics, &mut idm, &mut caches, &config).unwrap(),
+        None => rollout(scenes, &batch, &dynamics, &mut idm, &mut caches, &config),
     };
+    (result.unwrap(), batch)
+}
+
+/// Collision rate (% of policy-driven agents) of the IDM reference driver on `scenes`, and
+/// the number of agents; with `targets_only`, only agent 0 of each scene (a scenario's target).
+fn idm_collision_pct(
+    scenes: &[&Scene],
+    scenarios: Option<&[&ConcreteScenario]>,
+    targets_only: bool,
+) -> (f64, usize) {
+    let (result, batch) = idm_rollout(scenes, scenarios);
     let [b, n, t] = result.collision.dims();
     let flags = result
         .collision
@@ -405,31 +415,10 @@ fn speeds_and_travel(out: &rtr::sim::Rollout, batch: &SceneBatch) -> Vec<Vec<(f6
 fn check_standstill(scenes: &[&Scene], heroes: Option<&[&ConcreteScenario]>) -> (usize, usize) {
     #[allow(deprecated)]
     let device = Device::ndarray();
-    let batch = SceneBatch::from_scenes(scenes, &device).unwrap();
+    let (driven, batch) = idm_rollout(scenes, heroes);
     let dynamics = Dynamics::bicycle(0.5);
     let config = RolloutConfig::default();
     let mut caches = MapCaches::default();
-    let mut idm = IdmDriver::new(scenes, IdmParams::default(), ActionLimits::default());
-    let driven = match heroes {
-        Some(sc) => {
-            let mut scripts = hero_scripts(sc, scenes);
-            let mut scripted = Scripted {
-                policy: &mut idm,
-                script: &mut scripts,
-                mask: batch.agent_hero.clone(),
-            };
-            rollout(
-                scenes,
-                &batch,
-                &dynamics,
-                &mut scripted,
-                &mut caches,
-                &config,
-            )
-        }
-        None => rollout(scenes, &batch, &dynamics, &mut idm, &mut caches, &config),
-    }
-    .unwrap();
     let mut full_brake = |obs: &rtr::sim::Observation| rtr::sim::Controls {
         accel: Tensor::ones(obs.state.speed.dims(), &device).mul_scalar(-20.0),
         steer: Tensor::zeros(obs.state.speed.dims(), &device),

@@ -329,6 +329,34 @@ fn a_run_file_names_a_dynamics_file_relative_to_itself() {
         message.contains("dynamics.toml") && message.contains("tau_s"),
         "{message}"
     );
+    // A discovered term loads; one outside its equation's library or not finite is named.
+    std::fs::write(
+        &path,
+        "[[discovered]]\nequation = \"speed\"\nfeature = \"u_brake\"\ncoefficient = 0.3\n",
+    )
+    .expect("written");
+    let loaded = DynamicsFile::load(&path).expect("loads");
+    let dynamics = loaded.apply(rtr::sim::Dynamics::bicycle(0.5), &device());
+    assert_eq!(dynamics.terms()[0].name(), "discovered");
+    for (bad, expected) in [
+        (
+            "feature = \"kappa_v\"\ncoefficient = 0.3",
+            "not in the dv/dt library",
+        ),
+        ("feature = \"u_brake\"\ncoefficient = nan", "not finite"),
+        ("feature = \"u_squared\"\ncoefficient = 0.3", "u_squared"),
+    ] {
+        std::fs::write(
+            &path,
+            format!("[[discovered]]\nequation = \"speed\"\n{bad}\n"),
+        )
+        .expect("written");
+        let message = DynamicsFile::load(&path).expect_err(bad).to_string();
+        assert!(
+            message.contains("dynamics.toml") && message.contains(expected),
+            "{message}"
+        );
+    }
 }
 
 #[test]

@@ -217,46 +217,34 @@ mod tests {
         Tensor::from_data(TensorData::new(vec![v as f32], [1, 1]), &device)
     }
 
+    /// One step of `dynamics` (limits off) from 12 m/s under (-2 m/s^2, 0.04 rad).
+    fn step(mut dynamics: Dynamics) -> VehicleState {
+        dynamics.limits = None;
+        dynamics.step(
+            &VehicleState {
+                x: scalar(0.0),
+                y: scalar(0.0),
+                heading: scalar(0.0),
+                speed: scalar(12.0),
+                aux: Vec::new(),
+            },
+            &Controls {
+                accel: scalar(-2.0),
+                steer: scalar(0.04),
+            },
+            &scalar(2.8),
+        )
+    }
+
     #[test]
     fn tensor_and_host_features_agree_and_add_to_their_equation() {
         let (v, u, phi) = (12.0, -2.0, 0.04);
+        let plain = step(Dynamics::bicycle(0.5));
         for equation in [Equation::Speed, Equation::HeadingRate] {
             for &feature in Feature::library(equation) {
-                let mut dynamics = Dynamics::bicycle(0.5);
-                dynamics.limits = None;
-                let plain = dynamics.step(
-                    &VehicleState {
-                        x: scalar(0.0),
-                        y: scalar(0.0),
-                        heading: scalar(0.0),
-                        speed: scalar(v),
-                        aux: Vec::new(),
-                    },
-                    &Controls {
-                        accel: scalar(u),
-                        steer: scalar(phi),
-                    },
-                    &scalar(2.8),
-                );
-                let with = Dynamics::bicycle(0.5).with_term(Box::new(LibraryTerm {
+                let next = step(Dynamics::bicycle(0.5).with_term(Box::new(LibraryTerm {
                     terms: vec![(equation, feature, scalar(0.1))],
-                }));
-                let mut with = with;
-                with.limits = None;
-                let next = with.step(
-                    &VehicleState {
-                        x: scalar(0.0),
-                        y: scalar(0.0),
-                        heading: scalar(0.0),
-                        speed: scalar(v),
-                        aux: Vec::new(),
-                    },
-                    &Controls {
-                        accel: scalar(u),
-                        steer: scalar(phi),
-                    },
-                    &scalar(2.8),
-                );
+                })));
                 let host =
                     |t: &Tensor<2>| t.to_data().convert::<f64>().try_to_vec::<f64>().unwrap()[0];
                 let expected = 0.1 * feature.value(v, u, phi) * 0.5;

@@ -23,6 +23,9 @@ const MIN_SPEED_M_S: f64 = 1.0;
 /// contribution is at least this large.
 const THRESHOLDS: [f64; 8] = [0.01, 0.02, 0.05, 0.1, 0.15, 0.2, 0.3, 0.5];
 
+/// Regression needs at least this many training samples per library column.
+const MIN_SAMPLES_PER_TERM: usize = 20;
+
 /// A selection must cut the held-out residual's mean square by this share to count.
 const MIN_GAIN: f64 = 0.05;
 
@@ -199,6 +202,20 @@ fn select(
     train: &[Sample],
     heldout: &[Sample],
 ) -> (EquationFit, f64) {
+    if train.len() < MIN_SAMPLES_PER_TERM * (library.len() + 1) || heldout.is_empty() {
+        // Too few samples (slow or short tracks, commands changing all the time) to select
+        // anything from.
+        let fit = EquationFit {
+            equation,
+            terms: Vec::new(),
+            threshold: f64::NAN,
+            heldout_ms_before: f64::NAN,
+            heldout_ms_after: f64::NAN,
+            training_samples: train.len(),
+            heldout_samples: heldout.len(),
+        };
+        return (fit, 0.0);
+    }
     let (x, y) = design(equation, library, train);
     let (xh, yh) = design(equation, library, heldout);
     let ms = |r: DVector<f64>| r.norm_squared() / r.len().max(1) as f64;
@@ -304,31 +321,37 @@ fn stlsq(x: &DMatrix<f64>, y: &DVector<f64>, threshold: f64, keep: usize) -> Vec
 mod tests {
     use super::*;
 
-    #[test]
-    fn stlsq_keeps_the_true_terms_and_drops_the_rest() {
-        // y = 0.3 min(u, 0) - 0.0005 v^2 plus small noise, over varied v and u.
-        let mut samples = Vec::new();
-        for i in 0..400 {
-            let v = 2.0 + (i % 37) as f64;
-            let u = ((i * 7919) % 101) as f64 / 101.0 * 6.0 - 3.5;
-            let noise = (((i * 104729) % 1000) as f64 / 1000.0 - 0.5) * 0.02;
-            samples.push(Sample {
-                track: i % 4,
-                v,
-                u,
-                phi: 0.0,
-                speed_residual: 0.3 * u.min(0.0) - 0.0005 * v * v + noise,
-                heading_residual: 0.0,
-            });
-        }
+    /// 400 samples over varied v and u on 4 tracks, with `residual(v, u, i)` as the speed
+    /// residual; the speed equation selected with track 3 held out.
+    fn select_speed(residual: impl Fn(f64, f64, usize) -> f64) -> EquationFit {
+        let samples: Vec<Sample> = (0..400)
+            .map(|i| {
+                let v = 2.0 + (i % 37) as f64;
+                let u = ((i * 7919) % 101) as f64 / 101.0 * 6.0 - 3.5;
+                Sample {
+                    track: i % 4,
+                    v,
+                    u,
+                    phi: 0.0,
+                    speed_residual: residual(v, u, i),
+                    heading_residual: 0.0,
+                }
+            })
+            .collect();
         let (train, heldout): (Vec<Sample>, Vec<Sample>) =
             samples.into_iter().partition(|s| s.track != 3);
-        let (fit, _) = select(
-            Equation::Speed,
-            Feature::library(Equation::Speed),
-            &train,
-            &heldout,
-        );
+        let library = Feature::library(Equation::Speed);
+        select(Equation::Speed, library, &train, &heldout).0
+    }
+
+    /// Deterministic noise in [-0.5, 0.5) x `scale`.
+    fn noise(i: usize, scale: f64) -> f64 {
+        (((i * 104729) % 1000) as f64 / 1000.0 - 0.5) * scale
+    }
+
+    #[test]
+    fn stlsq_keeps_the_true_terms_and_drops_the_rest() {
+        let fit = select_speed(|v, u, i| 0.3 * u.min(0.0) - 0.0005 * v * v + noise(i, 0.02));
         let terms: Vec<Feature> = fit.terms.iter().map(|t| t.0).collect();
         assert_eq!(terms, vec![Feature::V2, Feature::UBrake], "{fit:?}");
         assert!((fit.terms[1].1 - 0.3).abs() < 0.01, "{fit:?}");
@@ -337,24 +360,19 @@ mod tests {
 
     #[test]
     fn pure_noise_selects_nothing() {
-        let samples: Vec<Sample> = (0..400)
-            .map(|i| Sample {
-                track: i % 4,
-                v: 2.0 + (i % 37) as f64,
-                u: ((i * 7919) % 101) as f64 / 101.0 * 6.0 - 3.5,
-                phi: 0.0,
-                speed_residual: (((i * 104729) % 1000) as f64 / 1000.0 - 0.5) * 0.2,
-                heading_residual: 0.0,
-            })
-            .collect();
-        let (train, heldout): (Vec<Sample>, Vec<Sample>) =
-            samples.into_iter().partition(|s| s.track != 3);
-        let (fit, _) = select(
-            Equation::Speed,
-            Feature::library(Equation::Speed),
-            &train,
-            &heldout,
-        );
+        let fit = select_speed(|_, _, i| noise(i, 0.2));
         assert!(fit.terms.is_empty(), "{fit:?}");
+    }
+
+    #[test]
+    fn too_few_samples_select_nothing_without_failing() {
+        let fit = select(
+            Equation::HeadingRate,
+            Feature::library(Equation::HeadingRate),
+            &[],
+            &[],
+        )
+        .0;
+        assert!(fit.terms.is_empty() && fit.training_samples == 0, "{fit:?}");
     }
 }
