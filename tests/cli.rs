@@ -382,8 +382,8 @@ fn eval_prints_the_table_row_and_writes_the_documented_json() {
         .lines()
         .find(|l| l.starts_with("| IL |"))
         .expect("an IL row");
-    // Method + 9 nominal metrics + the realism score.
-    assert_eq!(row.matches('|').count(), 12, "{row}");
+    // Method + 10 nominal metrics + the realism score.
+    assert_eq!(row.matches('|').count(), 13, "{row}");
     let json: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out_dir.join("results.json")).expect("results.json"))
             .expect("JSON");
@@ -391,6 +391,7 @@ fn eval_prints_the_table_row_and_writes_the_documented_json() {
     for key in [
         "collision_pct",
         "offroad_pct",
+        "infraction_pct",
         "fde_m",
         "ate_m",
         "cte_m",
@@ -403,6 +404,17 @@ fn eval_prints_the_table_row_and_writes_the_documented_json() {
         assert!(nominal[format!("{key}_ci")].is_number(), "{key}_ci");
     }
     assert_eq!(nominal["scenes"], 100);
+    // Either infraction: at least each one alone, at most both together.
+    let pct = |key: &str| nominal[key].as_f64().expect(key);
+    let any = pct("infraction_pct");
+    assert!(
+        any >= pct("collision_pct").max(pct("offroad_pct")),
+        "{nominal}"
+    );
+    assert!(
+        any <= pct("collision_pct") + pct("offroad_pct") + 1e-9,
+        "{nominal}"
+    );
     let realism = nominal["realism"].as_f64().expect("realism");
     assert!(realism > 0.0 && realism <= 1.0, "{realism}");
     for file in [

@@ -197,8 +197,8 @@ fn without_time(rows: &[CurveRow]) -> Vec<CurveRow> {
         .collect()
 }
 
-/// Every parameter value of the run's latest policy checkpoint, in module order.
-fn policy_values(run: &Path, config: &TrainConfig) -> Vec<f32> {
+/// Every parameter value of `policy`, in module order.
+fn parameter_values(policy: &rtr::model::PolicyNetwork) -> Vec<f32> {
     struct Values(Vec<f32>);
     impl burn::module::ModuleVisitor for Values {
         fn visit_float<const D: usize>(
@@ -214,16 +214,21 @@ fn policy_values(run: &Path, config: &TrainConfig) -> Vec<f32> {
             self.0.extend(v);
         }
     }
+    let mut values = Values(Vec::new());
+    policy.visit(&mut values);
+    values.0
+}
+
+/// Every parameter value of the run's latest policy checkpoint, in module order.
+fn policy_values(run: &Path, config: &TrainConfig) -> Vec<f32> {
     let dir = rtr::train::checkpoint::latest(run)
         .expect("pointer")
         .expect("a checkpoint");
     #[allow(deprecated)]
     let device = burn::prelude::Device::ndarray();
-    let policy =
-        rtr::train::load_policy(&dir.join("policy.bpk"), &config.model, &device).expect("loads");
-    let mut values = Values(Vec::new());
-    policy.visit(&mut values);
-    values.0
+    parameter_values(
+        &rtr::train::load_policy(&dir.join("policy.bpk"), &config.model, &device).expect("loads"),
+    )
 }
 
 #[test]
@@ -344,6 +349,56 @@ fn two_devices_compute_the_one_device_loss_and_gradient() {
     );
     let c = &spread[0];
     assert!(close(a.loss, c.loss) && close(a.policy_grad_norm, c.policy_grad_norm));
+}
+
+/// A warm start begins from the given policy: with the whole run in the value warm-up, the
+/// policy stays exactly the initial one while the value network learns; after the warm-up the
+/// policy moves. A missing initial policy is named.
+#[test]
+fn a_warm_started_run_begins_from_its_initial_policy_and_warms_up_the_value() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let init = reference_policy(dir.path());
+    let run = |warmup: usize, out: &Path| {
+        let mut config = tiny("RTR", "alpha = 0.5", "");
+        config.init = Some(rtr::train::InitConfig {
+            policy: init.clone().into(),
+        });
+        config.ppo.value_warmup_iterations = warmup;
+        config.optimizer.epochs = 2;
+        let rows = train(config.clone(), out, false, None);
+        (rows, policy_values(out, &config))
+    };
+    #[allow(deprecated)]
+    let device = burn::prelude::Device::ndarray();
+    let initial = parameter_values(
+        &rtr::train::load_policy(Path::new(&init), &tiny("IL", "", "").model, &device)
+            .expect("initial policy"),
+    );
+
+    let warming = dir.path().join("warming");
+    let (rows, policy) = run(2, &warming);
+    assert_eq!(policy, initial, "the policy moved during the value warm-up");
+    assert!(
+        rows.iter()
+            .all(|r| r.il_loss == 0.0 && r.policy_loss == 0.0 && r.value_loss > 0.0),
+        "{rows:?}"
+    );
+    assert!(rows.iter().all(|r| r.value_grad_norm > 0.0), "{rows:?}");
+
+    let after = dir.path().join("after");
+    let (rows, policy) = run(1, &after);
+    assert_ne!(policy, initial, "the policy never moved after the warm-up");
+    assert!(rows.last().is_some_and(|r| r.il_loss > 0.0), "{rows:?}");
+
+    let mut missing = tiny("RTR", "alpha = 0.5", "");
+    missing.init = Some(rtr::train::InitConfig {
+        policy: dir.path().join("no-such-policy.bpk"),
+    });
+    let workers = devices(&missing).expect("devices");
+    let err = Trainer::new(missing, data(), workers, &dir.path().join("x"), false)
+        .err()
+        .expect("a missing initial policy is refused");
+    assert!(err.to_string().contains("no-such-policy.bpk"), "{err}");
 }
 
 #[test]

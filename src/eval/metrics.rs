@@ -1,5 +1,6 @@
 //! The paper's metrics (appendix "Metrics") from per-scene tallies: collision and off-road %
-//! of policy-controlled agents, FDE at 5 s and its along-/cross-track split (ATE, CTE), and JSDs of feature
+//! of policy-controlled agents (and the % with either, so a low collision rate bought by
+//! leaving the road shows), FDE at 5 s and its along-/cross-track split (ATE, CTE), and JSDs of feature
 //! histograms (simulated vs logged). Every metric is a function of tallies summed over scenes,
 //! so the bootstrap over scenes resamples tallies ([`super::bootstrap`]).
 
@@ -17,6 +18,9 @@ pub struct SceneTally {
     /// Agents with at least one collision / off-road step.
     pub collided: f64,
     pub offroad: f64,
+    /// Agents with at least one collision or off-road step (either infraction).
+    #[serde(default)]
+    pub infracted: f64,
     /// FDE, ATE and CTE summed over the agents simulated and logged at the FDE horizon, and
     /// their count. ATE and CTE split the final displacement along and across the logged path
     /// (as the paper's table, where ATE^2 + CTE^2 ~ FDE^2).
@@ -35,6 +39,7 @@ impl Default for SceneTally {
             agents: 0.0,
             collided: 0.0,
             offroad: 0.0,
+            infracted: 0.0,
             fde_sum: 0.0,
             ate_sum: 0.0,
             cte_sum: 0.0,
@@ -54,6 +59,7 @@ impl Additive for SceneTally {
         self.agents += t * o.agents;
         self.collided += t * o.collided;
         self.offroad += t * o.offroad;
+        self.infracted += t * o.infracted;
         self.fde_sum += t * o.fde_sum;
         self.ate_sum += t * o.ate_sum;
         self.cte_sum += t * o.cte_sum;
@@ -72,6 +78,8 @@ impl Additive for SceneTally {
 pub enum Metric {
     CollisionPct,
     OffroadPct,
+    /// Agents with either infraction (not in the paper; issue 18).
+    InfractionPct,
     FdeM,
     AteM,
     CteM,
@@ -80,9 +88,10 @@ pub enum Metric {
 
 impl Metric {
     /// The columns in the paper's order.
-    pub const ALL: [Metric; 9] = [
+    pub const ALL: [Metric; 10] = [
         Metric::CollisionPct,
         Metric::OffroadPct,
+        Metric::InfractionPct,
         Metric::FdeM,
         Metric::AteM,
         Metric::CteM,
@@ -97,6 +106,7 @@ impl Metric {
         match self {
             Metric::CollisionPct => "collision_pct".into(),
             Metric::OffroadPct => "offroad_pct".into(),
+            Metric::InfractionPct => "infraction_pct".into(),
             Metric::FdeM => "fde_m".into(),
             Metric::AteM => "ate_m".into(),
             Metric::CteM => "cte_m".into(),
@@ -109,6 +119,7 @@ impl Metric {
         match self {
             Metric::CollisionPct => "Col (%)".into(),
             Metric::OffroadPct => "Off (%)".into(),
+            Metric::InfractionPct => "Any (%)".into(),
             Metric::FdeM => "FDE (m)".into(),
             Metric::AteM => "ATE (m)".into(),
             Metric::CteM => "CTE (m)".into(),
@@ -118,7 +129,10 @@ impl Metric {
 
     /// Needs logged futures of the controlled agents (real nominal scenes only).
     pub fn needs_log(self) -> bool {
-        !matches!(self, Metric::CollisionPct | Metric::OffroadPct)
+        !matches!(
+            self,
+            Metric::CollisionPct | Metric::OffroadPct | Metric::InfractionPct
+        )
     }
 
     /// The metric on summed tallies; `None` where it has no samples.
@@ -127,6 +141,7 @@ impl Metric {
         match self {
             Metric::CollisionPct => ratio(100.0 * t.collided, t.agents),
             Metric::OffroadPct => ratio(100.0 * t.offroad, t.agents),
+            Metric::InfractionPct => ratio(100.0 * t.infracted, t.agents),
             Metric::FdeM => ratio(t.fde_sum, t.fde_agents),
             Metric::AteM => ratio(t.ate_sum, t.fde_agents),
             Metric::CteM => ratio(t.cte_sum, t.fde_agents),
@@ -148,6 +163,7 @@ mod tests {
             agents: 4.0,
             collided: 1.0,
             offroad: 0.0,
+            infracted: 1.0,
             fde_sum: 6.0,
             ate_sum: 2.0,
             cte_sum: 1.0,
@@ -158,6 +174,7 @@ mod tests {
             agents: 6.0,
             collided: 0.0,
             offroad: 3.0,
+            infracted: 3.0,
             fde_sum: 1.0,
             ate_sum: 2.0,
             cte_sum: 1.0,
@@ -167,6 +184,7 @@ mod tests {
         a.add_scaled(&b, 1.0);
         assert_eq!(Metric::CollisionPct.value(&a), Some(10.0));
         assert_eq!(Metric::OffroadPct.value(&a), Some(30.0));
+        assert_eq!(Metric::InfractionPct.value(&a), Some(40.0));
         assert_eq!(Metric::FdeM.value(&a), Some(7.0 / 4.0));
         assert_eq!(Metric::AteM.value(&a), Some(1.0));
         assert_eq!(Metric::CteM.value(&a), Some(0.5));
@@ -196,6 +214,7 @@ mod tests {
             [
                 "collision_pct",
                 "offroad_pct",
+                "infraction_pct",
                 "fde_m",
                 "ate_m",
                 "cte_m",

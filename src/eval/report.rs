@@ -78,7 +78,7 @@ pub fn results_json(methods: &[MethodResult]) -> Value {
 /// The digits a metric is shown with.
 fn decimals(m: Metric) -> usize {
     match m {
-        Metric::CollisionPct | Metric::OffroadPct => 1,
+        Metric::CollisionPct | Metric::OffroadPct | Metric::InfractionPct => 1,
         Metric::FdeM | Metric::AteM | Metric::CteM => 2,
         Metric::Jsd(_) => 3,
     }
@@ -223,9 +223,10 @@ mod tests {
         let table = markdown_table(&[m], &sets);
         let lines: Vec<&str> = table.lines().collect();
         assert_eq!(lines.len(), 3);
-        // Method + 9 nominal + 2 long-tail columns.
-        assert_eq!(lines[0].matches('|').count(), 13);
-        assert_eq!(lines[2].matches('|').count(), 13);
+        // Method + 10 nominal + 3 long-tail columns.
+        assert_eq!(lines[0].matches('|').count(), 15);
+        assert_eq!(lines[2].matches('|').count(), 15);
+        assert!(lines[0].contains("longtail Any (%)"));
         assert!(lines[0].contains("longtail Col (%)"));
         assert!(lines[2].contains("7.5 ± 0.5"));
     }

@@ -176,8 +176,11 @@ fn tally_scene(
         .collect();
     for &i in &controlled {
         tally.agents += 1.0;
-        tally.collided += f64::from(u8::from(host.any_flag(&host.collision, b, i)));
-        tally.offroad += f64::from(u8::from(host.any_flag(&host.offroad, b, i)));
+        let collided = host.any_flag(&host.collision, b, i);
+        let offroad = host.any_flag(&host.offroad, b, i);
+        tally.collided += f64::from(u8::from(collided));
+        tally.offroad += f64::from(u8::from(offroad));
+        tally.infracted += f64::from(u8::from(collided || offroad));
     }
     if !with_log {
         return tally;

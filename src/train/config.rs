@@ -114,6 +114,9 @@ pub struct TrainConfig {
     pub shaping: ShapingConfig,
     #[serde(default)]
     pub reference: Option<ReferenceConfig>,
+    /// Warm start: the policy's initial parameters from an earlier run (BC -> IL -> RTR).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub init: Option<InitConfig>,
     #[serde(default)]
     pub data: DataConfig,
     #[serde(default)]
@@ -200,6 +203,10 @@ pub struct PpoConfig {
     pub value_weight: f64,
     /// Standardise advantages per minibatch (common practice; the paper does not say).
     pub normalize_advantages: bool,
+    /// Iterations at the start in which only the value network learns (the policy's loss is
+    /// not taken): a warm-started policy is not pushed around by advantages measured against
+    /// an untrained value. 0 (the paper, which starts from scratch): none.
+    pub value_warmup_iterations: usize,
 }
 
 impl Default for PpoConfig {
@@ -214,6 +221,7 @@ impl Default for PpoConfig {
             variant: PpoVariant::Factorized,
             value_weight: 1.0,
             normalize_advantages: false,
+            value_warmup_iterations: 0,
         }
     }
 }
@@ -267,6 +275,28 @@ pub struct ReferenceConfig {
     /// Weight of the KL term (loss weight for KL-L, reward scale for KL-R).
     #[serde(default = "default_one")]
     pub weight: f64,
+}
+
+/// A warm start. Only the policy is carried over: the value network, both optimizers and the
+/// learning-rate schedule start fresh, so a warm-started run is an ordinary run of its method
+/// from other initial weights (the method's loss is unchanged).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InitConfig {
+    /// A policy of the same model config: a `policy.bpk`, or a folder holding one (a model in
+    /// `models/`, a finished run), relative to the run file.
+    pub policy: PathBuf,
+}
+
+impl InitConfig {
+    /// The `policy.bpk` this names.
+    pub fn policy_file(&self) -> PathBuf {
+        if self.policy.is_dir() {
+            self.policy.join("policy.bpk")
+        } else {
+            self.policy.clone()
+        }
+    }
 }
 
 /// Where initial states come from.
@@ -393,6 +423,11 @@ impl TrainConfig {
             && curated.is_relative()
         {
             *curated = path.parent().unwrap_or(Path::new(".")).join(&*curated);
+        }
+        if let Some(init) = config.init.as_mut()
+            && init.policy.is_relative()
+        {
+            init.policy = path.parent().unwrap_or(Path::new(".")).join(&init.policy);
         }
         for source in &mut config.data.commonroad {
             if source.path.is_relative() {

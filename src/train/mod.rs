@@ -30,8 +30,8 @@ pub mod trainer;
 
 pub use checkpoint::{Checkpoint, LoopState, load_policy};
 pub use config::{
-    CommonRoadSource, DataConfig, ImitationConfig, Method, OptimizerConfig, PpoConfig, PpoVariant,
-    ReferenceConfig, RunConfig, ShapingConfig, TrainConfig,
+    CommonRoadSource, DataConfig, ImitationConfig, InitConfig, Method, OptimizerConfig, PpoConfig,
+    PpoVariant, ReferenceConfig, RunConfig, ShapingConfig, TrainConfig,
 };
 pub use curves::CurveRow;
 pub use sources::{InitialState, Part, TrainingData};

@@ -229,6 +229,10 @@ impl<'d> Trainer<'d> {
                         value.visit(&mut Materialise);
                         (policy, value)
                     });
+                let policy = match &config.init {
+                    Some(init) => checkpoint::load_module(policy, &init.policy_file())?,
+                    None => policy,
+                };
                 (
                     policy,
                     value,
@@ -578,6 +582,9 @@ impl<'d> Trainer<'d> {
         };
         let kl_weight = config.reference.as_ref().map_or(0.0, |r| r.weight);
         let uses_value = method.uses_ppo();
+        // During the value warm-up only the value loss is taken and only the value steps.
+        let warming_up = uses_value && i < config.ppo.value_warmup_iterations;
+        let policy_weight = if warming_up { 0.0 } else { 1.0 };
 
         let devices = self.devices.clone();
         let policy = &self.policy;
@@ -601,7 +608,7 @@ impl<'d> Trainer<'d> {
             };
             for w in &work {
                 let steps = rollout_steps(&w.part, cap);
-                if method.uses_closed_loop_il() && w.part.is_nominal() {
+                if method.uses_closed_loop_il() && w.part.is_nominal() && !warming_up {
                     let batch = match &w.experience {
                         Some(e) => e.batch.clone(),
                         None => SceneBatch::from_scenes(&w.part.scenes, &device.clone().inner())?,
@@ -615,9 +622,9 @@ impl<'d> Trainer<'d> {
                         steps,
                         &config.imitation,
                     )?;
-                    add(sum, norm.il, 1.0, &mut terms.il);
+                    add(sum, norm.il, policy_weight, &mut terms.il);
                 }
-                if let Some(labels) = &w.labels {
+                if let Some(labels) = w.labels.as_ref().filter(|_| !warming_up) {
                     let batch = match &w.experience {
                         Some(e) => e.batch.clone(),
                         None => SceneBatch::from_scenes(&w.part.scenes, &device.clone().inner())?,
@@ -625,7 +632,7 @@ impl<'d> Trainer<'d> {
                     add(
                         behaviour_cloning(&policy, &batch, labels),
                         norm.bc,
-                        1.0,
+                        policy_weight,
                         &mut terms.bc,
                     );
                 }
@@ -639,7 +646,12 @@ impl<'d> Trainer<'d> {
                         method == Method::KlLoss,
                     );
                     terms.clipped += t.clipped;
-                    add(t.policy.sum, norm.ppo, rl_weight, &mut terms.policy);
+                    add(
+                        t.policy.sum,
+                        norm.ppo,
+                        policy_weight * rl_weight,
+                        &mut terms.policy,
+                    );
                     add(
                         t.value.sum,
                         norm.ppo,
@@ -647,7 +659,7 @@ impl<'d> Trainer<'d> {
                         &mut terms.value,
                     );
                     if let Some(kl) = t.kl {
-                        add(kl.sum, norm.kl, kl_weight, &mut terms.kl);
+                        add(kl.sum, norm.kl, policy_weight * kl_weight, &mut terms.kl);
                     }
                 }
             }
@@ -716,9 +728,11 @@ impl<'d> Trainer<'d> {
         } else {
             None
         };
-        self.policy = self
-            .policy_optimizer
-            .step(lr, self.policy.clone(), policy_grads);
+        if !warming_up {
+            self.policy = self
+                .policy_optimizer
+                .step(lr, self.policy.clone(), policy_grads);
+        }
         if let Some(g) = value_grads {
             self.value = self.value_optimizer.step(lr, self.value.clone(), g);
         }
