@@ -368,7 +368,7 @@ fn eval_prints_the_table_row_and_writes_the_documented_json() {
         "--set",
         "nominal",
         "--resamples",
-        "50",
+        "100",
         "--out",
         out_dir.to_str().unwrap(),
     ]);
@@ -445,6 +445,82 @@ fn eval_names_what_is_wrong_with_its_arguments() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
         !out.status.success() && err.contains("--checkpoint"),
+        "{err}"
+    );
+}
+
+/// Every count a user gives is bounded where it is parsed, before any work: zero resamples
+/// (every interval +- 0), a zero batch, billions of tracks (a 320 GB allocation) and zero
+/// iterations are refused, naming the flag and the accepted range.
+#[test]
+fn counts_out_of_range_are_refused_naming_the_flag() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let csv = dir.path().join("r.csv");
+    let csv_path = csv.to_str().unwrap();
+    let cases: [(&str, &[&str]); 6] = [
+        ("--resamples", &["eval", "--idm", "--resamples", "0"]),
+        ("--batch", &["eval", "--idm", "--batch", "0"]),
+        (
+            "--batch",
+            &[
+                "curate",
+                "--checkpoint",
+                "models/il",
+                "--out",
+                "x.txt",
+                "--batch",
+                "0",
+            ],
+        ),
+        (
+            "--tracks",
+            &[
+                "recordings",
+                "generate",
+                "--effect",
+                "none",
+                "--tracks",
+                "4000000000",
+                "--out",
+                csv_path,
+            ],
+        ),
+        (
+            "--iterations",
+            &[
+                "sim2real",
+                "--a9",
+                "--report",
+                "r.json",
+                "--iterations",
+                "0",
+            ],
+        ),
+        (
+            "--resamples",
+            &["sweep", "--config", "x.toml", "--resamples", "10"],
+        ),
+    ];
+    for (flag, args) in cases {
+        let out = rtr(args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && err.contains(flag) && err.contains("is not in"),
+            "{args:?}: {err}"
+        );
+    }
+    assert!(!csv.exists(), "nothing written on error");
+    let out = rtr(&[
+        "sim2real",
+        "--a9",
+        "--report",
+        "r.json",
+        "--horizon",
+        "0.05",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("0.05 s horizon") && !err.contains("panicked"),
         "{err}"
     );
 }

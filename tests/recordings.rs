@@ -352,3 +352,53 @@ fn single_sample_track_is_rejected() {
     let message = error(&text);
     assert_contains(&message, &["track `b`", "line 4", "at least 2", "period"]);
 }
+
+#[test]
+fn timestamps_in_milliseconds_are_rejected() {
+    // 10 Hz with t in ms: a median step of 100.
+    let text = format!("{HEADER}\nm,0,0,0,0,1,0,0\nm,100,0,0,0,1,0,0\nm,200,0,0,0,1,0,0\n");
+    let message = error(&text);
+    assert_contains(
+        &message,
+        &[
+            "track `m`",
+            "`t`",
+            "line 2",
+            "100",
+            "milliseconds",
+            "seconds",
+        ],
+    );
+}
+
+#[test]
+fn a_log_slower_than_1_hz_is_rejected() {
+    let text = format!("{HEADER}\ns,0,0,0,0,1,0,0\ns,10,10,0,0,1,0,0\ns,20,20,0,0,1,0,0\n");
+    assert_contains(&error(&text), &["track `s`", "period", "10", "1 Hz"]);
+}
+
+/// A horizon shorter than two sampling periods (which once panicked in the simulator) is an
+/// error naming the track and the horizon, on any recordings (a file's or the A9's).
+#[test]
+fn a_horizon_shorter_than_two_samples_is_named_not_a_panic() {
+    use rtr::sim2real::{GeneratorConfig, Sim2RealOptions, generate, identify};
+    #[allow(deprecated)]
+    let device = burn::prelude::Device::ndarray();
+    let recordings = generate(
+        &GeneratorConfig {
+            tracks: 4,
+            duration_s: 20.0,
+            ..GeneratorConfig::with_effect(None, 7)
+        },
+        &device,
+    );
+    let options = Sim2RealOptions {
+        horizon_s: 0.05,
+        ..Sim2RealOptions::default()
+    };
+    let message = match identify(&recordings, &options, &|_| {}) {
+        Ok(_) => panic!("a 0.05 s horizon at 10 Hz was accepted"),
+        Err(e) => e.to_string(),
+    };
+    assert_contains(&message, &["track", "0.05 s horizon", "at least 2 samples"]);
+}

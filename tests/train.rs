@@ -401,6 +401,71 @@ fn a_warm_started_run_begins_from_its_initial_policy_and_warms_up_the_value() {
     assert!(err.to_string().contains("no-such-policy.bpk"), "{err}");
 }
 
+/// Resume refuses what it cannot continue: a folder without a checkpoint (empty, or holding
+/// only a config), a `state.json` edited to claim another position, a tensor file changed
+/// after it was written; and a policy with NaN weights is refused by name wherever it is
+/// loaded.
+#[test]
+fn resume_and_loading_refuse_missing_tampered_and_corrupted_checkpoints() {
+    let config = || tiny("IL", "", "");
+    let trainer = |dir: &Path| {
+        let workers = devices(&config()).expect("devices");
+        Trainer::new(config(), data(), workers, dir, true).map(|_| ())
+    };
+    let root = tempfile::tempdir().expect("temp dir");
+    let empty = root.path().join("empty");
+    std::fs::create_dir_all(&empty).expect("mkdir");
+    let err = trainer(&empty).expect_err("nothing to resume");
+    assert!(err.to_string().contains("no checkpoint to resume"), "{err}");
+    std::fs::write(empty.join("config.toml"), "method = \"IL\"\n").expect("write");
+    let err = trainer(&empty).expect_err("a config alone is nothing to resume");
+    assert!(err.to_string().contains("no checkpoint to resume"), "{err}");
+    let err = trainer(&root.path().join("missing")).expect_err("no folder");
+    assert!(err.to_string().contains("no checkpoint to resume"), "{err}");
+
+    let run = root.path().join("run");
+    train(config(), &run, false, Some(1));
+    let checkpoint = rtr::train::checkpoint::latest(&run)
+        .expect("pointer")
+        .expect("a checkpoint");
+    trainer(&run).expect("an untouched checkpoint resumes");
+
+    let state_path = checkpoint.join("state.json");
+    let state = std::fs::read_to_string(&state_path).expect("state");
+    let tampered = state.replace("\"iteration\": 1,", "\"iteration\": 1000000000000,");
+    assert_ne!(tampered, state, "{state}");
+    std::fs::write(&state_path, &tampered).expect("write");
+    let err = trainer(&run).expect_err("a tampered position");
+    let text = err.to_string();
+    assert!(
+        text.contains("state.json") && text.contains("1000000000000"),
+        "{text}"
+    );
+    std::fs::write(&state_path, &state).expect("restore");
+
+    let policy_path = checkpoint.join("policy.bpk");
+    let mut bytes = std::fs::read(&policy_path).expect("policy");
+    let n = bytes.len();
+    bytes[n - 8..].fill(0xFF);
+    std::fs::write(&policy_path, &bytes).expect("corrupt");
+    let err = trainer(&run).expect_err("a corrupted tensor file");
+    let text = err.to_string();
+    assert!(
+        text.contains("policy.bpk") && text.contains("sha256"),
+        "{text}"
+    );
+    // The same bytes without a state to check them against: NaN weights, refused by name.
+    #[allow(deprecated)]
+    let device = burn::prelude::Device::ndarray();
+    let err =
+        rtr::train::load_policy(&policy_path, &config().model, &device).expect_err("NaN weights");
+    let text = err.to_string();
+    assert!(
+        text.contains("policy.bpk") && text.contains("parameter") && text.contains("NaN"),
+        "{text}"
+    );
+}
+
 #[test]
 fn run_files_with_mistakes_are_named() {
     let err = TrainConfig::from_toml_str("method = \"RTR\"\n[ppo]\ngama = 0.9\n", "bad.toml")

@@ -12,6 +12,14 @@ use rtr::model::{ModelConfig, PolicyNetwork, ValueNetwork};
 use rtr::render::{RenderOptions, output_paths, render_map, render_scene};
 use rtr::{Error, Result};
 
+/// A count flag within `min..=max`; clap's error names the flag, the value and the range.
+fn count(min: u64, max: u64) -> impl clap::builder::TypedValueParser<Value = usize> {
+    use clap::builder::TypedValueParser;
+    clap::value_parser!(u64)
+        .range(min..=max)
+        .map(|v| usize::try_from(v).unwrap_or(usize::MAX))
+}
+
 #[derive(Parser)]
 #[command(
     name = "rtr",
@@ -104,11 +112,11 @@ struct EvalArgs {
     /// Write results.json, table.md and the figures here.
     #[arg(long)]
     out: Option<PathBuf>,
-    /// Bootstrap resamples over scenes for the +- intervals.
-    #[arg(long, default_value_t = 1000)]
+    /// Bootstrap resamples over scenes for the +- intervals (at least 100).
+    #[arg(long, default_value_t = 1000, value_parser = count(100, 1_000_000))]
     resamples: usize,
     /// Scenes per tensor batch.
-    #[arg(long, default_value_t = 16)]
+    #[arg(long, default_value_t = 16, value_parser = count(1, 4096))]
     batch: usize,
     #[arg(long, default_value_t = Backend::NdArray)]
     backend: Backend,
@@ -126,10 +134,10 @@ struct DownstreamArgs {
     #[arg(long)]
     idm: bool,
     /// Synthetic datasets and predictors per method.
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = 4, value_parser = count(1, 1000))]
     seeds: usize,
     /// Predictor training epochs.
-    #[arg(long, default_value_t = rtr::predict::FitConfig::default().epochs)]
+    #[arg(long, default_value_t = rtr::predict::FitConfig::default().epochs, value_parser = count(1, 100_000))]
     epochs: usize,
     /// Write results.json and table.md here.
     #[arg(long)]
@@ -150,7 +158,7 @@ struct CurateArgs {
     #[arg(long)]
     out: PathBuf,
     /// Scenes per tensor batch.
-    #[arg(long, default_value_t = 16)]
+    #[arg(long, default_value_t = 16, value_parser = count(1, 4096))]
     batch: usize,
     #[arg(long, default_value_t = Backend::NdArray)]
     backend: Backend,
@@ -176,8 +184,8 @@ struct SweepArgs {
     /// Scene sets to evaluate on, comma-separated.
     #[arg(long, value_delimiter = ',', default_value = "nominal,longtail")]
     set: Vec<String>,
-    /// Bootstrap resamples over scenes.
-    #[arg(long, default_value_t = 1000)]
+    /// Bootstrap resamples over scenes (at least 100).
+    #[arg(long, default_value_t = 1000, value_parser = count(100, 1_000_000))]
     resamples: usize,
     #[command(flatten)]
     data: DataArgs,
@@ -204,7 +212,7 @@ struct Sim2RealArgs {
     #[arg(long)]
     save_dynamics: Option<PathBuf>,
     /// Gradient-descent iterations per candidate.
-    #[arg(long, default_value_t = 120)]
+    #[arg(long, default_value_t = 120, value_parser = count(1, 100_000))]
     iterations: usize,
     /// Horizon of the fitting and held-out windows (s).
     #[arg(long, default_value_t = 5.0)]
@@ -229,7 +237,8 @@ enum RecordingsCommand {
         effect: String,
         #[arg(long, default_value_t = 11)]
         seed: u64,
-        #[arg(long, default_value_t = 24)]
+        /// One-minute tracks to generate.
+        #[arg(long, default_value_t = 24, value_parser = count(3, 10_000))]
         tracks: usize,
         /// Output CSV.
         #[arg(long)]
@@ -325,14 +334,14 @@ struct TrainBenchArgs {
     /// The small network of the tests instead of the paper's (hidden 128).
     #[arg(long)]
     small: bool,
-    #[arg(long, default_value_t = 32)]
+    #[arg(long, default_value_t = 32, value_parser = count(1, 4096))]
     il_minibatch: usize,
-    #[arg(long, default_value_t = 192)]
+    #[arg(long, default_value_t = 192, value_parser = count(1, 4096))]
     ppo_batch: usize,
-    #[arg(long, default_value_t = 32)]
+    #[arg(long, default_value_t = 32, value_parser = count(1, 4096))]
     ppo_minibatch: usize,
     /// Worker devices (data parallel); default one per core (one on wgpu).
-    #[arg(long)]
+    #[arg(long, value_parser = count(1, 256))]
     devices: Option<usize>,
     /// Print one JSON object (the only output format; accepted for symmetry).
     #[arg(long)]
@@ -347,11 +356,11 @@ struct BenchArgs {
     #[arg(long, default_value = "ndarray")]
     backend: Backend,
     /// Timed repetitions per measurement (the median is reported).
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 5, value_parser = count(1, 1000))]
     repetitions: usize,
     /// Worker devices the model benchmark splits its batch over; default one per core (one on
     /// wgpu). The simulator benchmark has no network and ignores it.
-    #[arg(long)]
+    #[arg(long, value_parser = count(1, 256))]
     devices: Option<usize>,
     /// Print one JSON object (the only output format; the flag is accepted for symmetry with
     /// other commands).
@@ -655,11 +664,6 @@ fn downstream(args: DownstreamArgs) -> Result<()> {
     use rtr::eval::downstream::{DownstreamConfig, downstream, downstream_table};
     use rtr::eval::study::load_entries;
     use rtr::eval::{EvalConfig, EvalScenes};
-    if args.seeds == 0 || args.epochs == 0 {
-        return Err(Error::InvalidArgument(
-            "--seeds and --epochs must be at least 1".into(),
-        ));
-    }
     let entries = load_entries(&args.checkpoints, args.idm, &args.backend.device(false)?)?;
     let dataset = args.data.load()?;
     let split = dataset.scenes(&SceneConfig::default())?;
@@ -807,6 +811,12 @@ fn sweep(args: SweepArgs) -> Result<()> {
 
 fn sim2real(args: Sim2RealArgs) -> Result<()> {
     use rtr::sim2real::{Sim2RealOptions, a9::a9_recordings, identify, plots::write_plots};
+    if !(args.horizon > 0.0 && args.horizon <= 60.0) {
+        return Err(Error::InvalidArgument(format!(
+            "--horizon {}: expected seconds in (0, 60]",
+            args.horizon
+        )));
+    }
     let (recordings, commands_inferred) = match &args.recordings {
         Some(path) => (rtr::data::Recordings::load(path)?, false),
         None => (
@@ -814,11 +824,6 @@ fn sim2real(args: Sim2RealArgs) -> Result<()> {
             true,
         ),
     };
-    if !(args.horizon > 0.0 && args.horizon.is_finite()) || args.iterations == 0 {
-        return Err(Error::InvalidArgument(
-            "--horizon must be positive and --iterations at least 1".into(),
-        ));
-    }
     let mut options = Sim2RealOptions {
         horizon_s: args.horizon,
         seed: args.seed,
@@ -860,9 +865,6 @@ fn sim2real(args: Sim2RealArgs) -> Result<()> {
 
 fn generate_recordings(effect: &str, seed: u64, tracks: usize, out: &Path) -> Result<()> {
     use rtr::sim2real::{Effect, GeneratorConfig, Uncatalogued, generate};
-    if tracks < 3 {
-        return Err(Error::InvalidArgument("--tracks must be at least 3".into()));
-    }
     let mut config = match effect {
         "none" => GeneratorConfig::with_effect(None, seed),
         name => match (Effect::from_name(name), Uncatalogued::typical(name)) {

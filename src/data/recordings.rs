@@ -20,7 +20,7 @@
 //! Rows are grouped by `track_id` (tracks keep the order of their first row, rows keep file
 //! order, rows of different tracks may interleave). Each track must have at least two samples,
 //! strictly increasing times and a uniform sampling period: the period is the median time step
-//! and every step must be within 5% of it. Gaps and jitter are rejected rather than silently
+//! and every step must be within 5% of it, between 1 ms and 1 s (timestamps in seconds). Gaps and jitter are rejected rather than silently
 //! resampled. Values whose magnitude suggests a unit mistake (degrees, km/h, millimetres) are
 //! rejected too.
 
@@ -59,6 +59,10 @@ const MAX_WHEELBASE: f64 = 20.0;
 const WHEELBASE_TOLERANCE: f64 = 1e-3;
 /// Largest accepted relative deviation of a time step from the track's period.
 const PERIOD_TOLERANCE: f64 = 0.05;
+/// Accepted sampling periods (s): 1 kHz to 1 Hz. Outside, the timestamps are almost surely
+/// not seconds (milliseconds give periods of 10-1000).
+const MIN_PERIOD: f64 = 1e-3;
+const MAX_PERIOD: f64 = 1.0;
 
 /// One vehicle's uniformly sampled recording.
 #[derive(Debug, Clone)]
@@ -571,6 +575,26 @@ impl TrackBuilder {
         } else {
             0.5 * (sorted[n / 2 - 1] + sorted[n / 2])
         };
+        if !(MIN_PERIOD..=MAX_PERIOD).contains(&period) {
+            let hint = if period > MAX_PERIOD {
+                "timestamps in milliseconds? "
+            } else {
+                "timestamps in microseconds? "
+            };
+            return Err(Error::invalid(
+                source,
+                format!(
+                    "track `{}`, column `t` (line {})",
+                    track.id, track.first_line
+                ),
+                format!(
+                    "sampling period (median step) is {period}; {hint}expected seconds, \
+                     sampled between {} Hz and {} kHz",
+                    1.0 / MAX_PERIOD,
+                    1e-3 / MIN_PERIOD
+                ),
+            ));
+        }
         for (k, &step) in steps.iter().enumerate() {
             if (step - period).abs() > PERIOD_TOLERANCE * period {
                 let line = self.lines[k + 1];

@@ -93,7 +93,34 @@ struct Split {
     short: Vec<Window>,
 }
 
+/// The horizons must hold whole sampling periods of every track (a window of fewer than 2
+/// steps compares nothing).
+fn check_horizons(recordings: &Recordings, options: &Sim2RealOptions) -> Result<()> {
+    let shortest = options.horizon_s.min(options.short_window_s);
+    if !(shortest.is_finite() && shortest > 0.0 && options.horizon_s.is_finite()) {
+        return Err(Error::InvalidArgument(format!(
+            "the horizon ({} s) and short window ({} s) must be positive seconds",
+            options.horizon_s, options.short_window_s
+        )));
+    }
+    match recordings.tracks.iter().find(|t| 2.0 * t.period > shortest) {
+        Some(t) => Err(Error::invalid(
+            &recordings.source,
+            format!("track `{}` (line {})", t.id, t.first_line),
+            format!(
+                "sampled every {} s, but the {} s horizon needs at least 2 samples: expected \
+                 a sampling period of at most {} s (or a longer --horizon)",
+                t.period,
+                shortest,
+                shortest / 2.0
+            ),
+        )),
+        None => Ok(()),
+    }
+}
+
 fn split(recordings: &Recordings, options: &Sim2RealOptions) -> Result<Split> {
+    check_horizons(recordings, options)?;
     let mut order: Vec<usize> = (0..recordings.tracks.len()).collect();
     order.shuffle(&mut ChaCha8Rng::seed_from_u64(options.seed));
     let every = options.heldout_every.max(2);

@@ -2,7 +2,12 @@
 //! position, in one folder `checkpoints/iter-NNNNNN/`. The folder is written under a temporary
 //! name and renamed into place, then `checkpoints/latest` is replaced atomically: a run killed
 //! at any moment leaves the previous checkpoint whole and pointed to.
+//!
+//! Integrity: `state.json` records the sha256 of every tensor file, checked on load, and every
+//! loaded parameter (here and in [`load_module`], used for any `policy.bpk`) must be finite, so
+//! a corrupted file is refused by name instead of evaluated or trained on.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use burn::module::Module;
@@ -11,6 +16,7 @@ use burn::store::ModuleRecord;
 use burn::tensor::Bytes;
 use serde::{Deserialize, Serialize};
 
+use crate::data::automatum::sha256_hex;
 use crate::error::{Error, Result};
 use crate::io::atomic_write;
 use crate::model::{ModelConfig, PolicyNetwork, ValueNetwork};
@@ -33,6 +39,10 @@ pub struct LoopState {
     pub updates: usize,
     /// The run's config as TOML, so `--resume` can refuse a changed config.
     pub config_toml: String,
+    /// sha256 of each tensor file of the checkpoint, by file name (empty in checkpoints written
+    /// before checksums were kept; those are loaded unchecked).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub checksums: BTreeMap<String, String>,
 }
 
 /// Everything a resumed run needs.
@@ -68,12 +78,65 @@ fn module_bytes<M: Module>(module: &M, path: &Path) -> Result<Vec<u8>> {
     Ok(bytes.to_vec())
 }
 
-/// Loads a module's parameters from a burnpack file into `module` (which fixes the shapes).
+/// Finds the first parameter holding a non-finite value, by its path in the module.
+#[derive(Default)]
+struct NonFinite {
+    path: Vec<String>,
+    found: Option<(String, usize)>,
+}
+
+impl burn::module::ModuleVisitor for NonFinite {
+    fn enter_module(&mut self, name: &str, _container_type: &str) {
+        self.path.push(name.to_string());
+    }
+
+    fn exit_module(&mut self, _name: &str, _container_type: &str) {
+        self.path.pop();
+    }
+
+    fn visit_float<const D: usize>(&mut self, param: &burn::module::Param<burn::Tensor<D>>) {
+        if self.found.is_some() {
+            return;
+        }
+        let values: Vec<f32> = param
+            .val()
+            .into_data()
+            .convert::<f32>()
+            .try_into_vec::<f32>()
+            .unwrap_or_default();
+        let bad = values.iter().filter(|v| !v.is_finite()).count();
+        if bad > 0 {
+            self.found = Some((self.path.join("."), bad));
+        }
+    }
+}
+
+/// Refuses a module (read from `path`) with a NaN or infinite parameter.
+fn check_finite<M: Module>(module: &M, path: &Path) -> Result<()> {
+    let mut check = NonFinite::default();
+    module.visit(&mut check);
+    match check.found {
+        Some((name, count)) => Err(Error::invalid(
+            path.display().to_string(),
+            format!("parameter `{name}`"),
+            format!(
+                "{count} values are NaN or infinite: the file is corrupted, or was saved from a \
+                 diverged run; expected finite weights"
+            ),
+        )),
+        None => Ok(()),
+    }
+}
+
+/// Loads a module's parameters from a burnpack file into `module` (which fixes the shapes);
+/// every parameter must be finite.
 pub fn load_module<M: Module>(module: M, path: &Path) -> Result<M> {
     let record = ModuleRecord::from_bytes(read_bytes(path)?).map_err(|e| record_error(path, e))?;
-    module
+    let module = module
         .try_load_record(record)
-        .map_err(|e| record_error(path, e))
+        .map_err(|e| record_error(path, e))?;
+    check_finite(&module, path)?;
+    Ok(module)
 }
 
 /// A policy network of `config` with the parameters of a `policy.bpk`.
@@ -113,7 +176,7 @@ pub fn save(
     let optimizer_bytes = |o: &ModuleOptimizer, path: &Path| -> Result<Vec<u8>> {
         Ok(o.into_bytes().map_err(|e| record_error(path, e))?.to_vec())
     };
-    let files: [(&str, Vec<u8>); 5] = [
+    let tensors: [(&str, Vec<u8>); 4] = [
         (POLICY, module_bytes(policy, &tmp.join(POLICY))?),
         (VALUE, module_bytes(value, &tmp.join(VALUE))?),
         (
@@ -124,12 +187,17 @@ pub fn save(
             VALUE_OPTIMIZER,
             optimizer_bytes(value_optimizer, &tmp.join(VALUE_OPTIMIZER))?,
         ),
-        (
-            STATE,
-            serde_json::to_vec_pretty(state).map_err(|e| record_error(&tmp.join(STATE), e))?,
-        ),
     ];
-    for (file, bytes) in &files {
+    let state = LoopState {
+        checksums: tensors
+            .iter()
+            .map(|(file, bytes)| (file.to_string(), sha256_hex(bytes)))
+            .collect(),
+        ..state.clone()
+    };
+    let state_bytes =
+        serde_json::to_vec_pretty(&state).map_err(|e| record_error(&tmp.join(STATE), e))?;
+    for (file, bytes) in tensors.iter().chain([&(STATE, state_bytes)]) {
         let path = tmp.join(file);
         std::fs::write(&path, bytes).map_err(|e| Error::io(&path, e))?;
     }
@@ -158,6 +226,33 @@ fn prune(root: &Path, newest: &str) -> Result<()> {
     Ok(())
 }
 
+/// Checks each tensor file against the sha256 `state.json` recorded when it was written.
+fn verify_checksums(dir: &Path, state: &LoopState) -> Result<()> {
+    for (file, expected) in &state.checksums {
+        if ![POLICY, VALUE, POLICY_OPTIMIZER, VALUE_OPTIMIZER].contains(&file.as_str()) {
+            return Err(Error::invalid(
+                dir.join(STATE).display().to_string(),
+                "checksums",
+                format!("names `{file}`, which is not a file of a checkpoint"),
+            ));
+        }
+        let path = dir.join(file);
+        let actual = sha256_hex(&std::fs::read(&path).map_err(|e| Error::io(&path, e))?);
+        if &actual != expected {
+            return Err(Error::invalid(
+                path.display().to_string(),
+                "sha256",
+                format!(
+                    "is {actual}, but {} recorded {expected} when the checkpoint was written: \
+                     the file was changed or corrupted since",
+                    dir.join(STATE).display()
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// Loads the checkpoint in `dir` into fresh networks of `config` on `device`.
 pub fn load(
     dir: &Path,
@@ -170,6 +265,7 @@ pub fn load(
     let state_text = std::fs::read(&state_path).map_err(|e| Error::io(&state_path, e))?;
     let state: LoopState =
         serde_json::from_slice(&state_text).map_err(|e| record_error(&state_path, e))?;
+    verify_checksums(dir, &state)?;
     let optimizer = |o: ModuleOptimizer, file: &str| -> Result<ModuleOptimizer> {
         let path = dir.join(file);
         o.from_bytes(read_bytes(&path)?)

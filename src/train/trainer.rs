@@ -201,6 +201,7 @@ impl<'d> Trainer<'d> {
                         run_dir.display()
                     )));
                 }
+                check_position(&c.state, &dir, &config, data)?;
                 (
                     c.policy,
                     c.value,
@@ -217,7 +218,15 @@ impl<'d> Trainer<'d> {
                     dir.display()
                 )));
             }
-            (None, _) => {
+            (None, true) => {
+                return Err(Error::InvalidArgument(format!(
+                    "{}: no checkpoint to resume ({} is missing); drop --resume to start a new \
+                     run there",
+                    run_dir.display(),
+                    run_dir.join("checkpoints").join("latest").display()
+                )));
+            }
+            (None, false) => {
                 // Initialisation draws from the device's global RNG, and burn initialises
                 // parameters lazily: seed, then force every value, under a lock, so runs in
                 // parallel threads (tests) cannot interleave their draws.
@@ -242,6 +251,7 @@ impl<'d> Trainer<'d> {
                         iteration: 0,
                         updates: 0,
                         config_toml,
+                        checksums: Default::default(),
                     },
                 )
             }
@@ -302,28 +312,13 @@ impl<'d> Trainer<'d> {
         self.timing
     }
 
-    /// Initial states one iteration consumes.
-    fn scenes_per_iteration(&self) -> usize {
-        if self.config.method.uses_ppo() {
-            self.config.ppo.batch
-        } else {
-            self.config.imitation.minibatch
-        }
-    }
-
     pub fn iterations_per_epoch(&self) -> usize {
-        let scenes = self
-            .config
-            .optimizer
-            .epoch_scenes
-            .unwrap_or(self.data.nominal.len());
-        scenes.div_ceil(self.scenes_per_iteration()).max(1)
+        iterations_per_epoch(&self.config, self.data)
     }
 
     /// Iterations of the whole run (all epochs, capped by `run.max_iterations`).
     pub fn total_iterations(&self) -> usize {
-        let all = self.iterations_per_epoch() * self.config.optimizer.epochs;
-        self.config.run.max_iterations.map_or(all, |m| m.min(all))
+        total_iterations(&self.config, self.data)
     }
 
     /// Runs until the last iteration, checkpointing as configured; `stop_after` ends early
@@ -762,6 +757,77 @@ impl<'d> Trainer<'d> {
         };
         self.curves.push(row.clone())?;
         Ok((row, returned))
+    }
+}
+
+/// Initial states one iteration consumes.
+fn scenes_per_iteration(config: &TrainConfig) -> usize {
+    if config.method.uses_ppo() {
+        config.ppo.batch
+    } else {
+        config.imitation.minibatch
+    }
+}
+
+fn iterations_per_epoch(config: &TrainConfig, data: &TrainingData) -> usize {
+    let scenes = config.optimizer.epoch_scenes.unwrap_or(data.nominal.len());
+    scenes.div_ceil(scenes_per_iteration(config)).max(1)
+}
+
+fn total_iterations(config: &TrainConfig, data: &TrainingData) -> usize {
+    let all = iterations_per_epoch(config, data) * config.optimizer.epochs;
+    config.run.max_iterations.map_or(all, |m| m.min(all))
+}
+
+/// Optimizer steps one iteration takes.
+fn updates_per_iteration(config: &TrainConfig) -> usize {
+    if config.method.uses_ppo() {
+        config.ppo.batch / config.ppo.minibatch * config.ppo.epochs
+    } else {
+        1
+    }
+}
+
+/// Refuses a checkpoint whose recorded position cannot be where this run stood: an iteration
+/// beyond the run, a step count that iteration cannot have taken, or a folder of another
+/// iteration (a hand-edited or mixed-up `state.json`).
+fn check_position(
+    state: &LoopState,
+    dir: &Path,
+    config: &TrainConfig,
+    data: &TrainingData,
+) -> Result<()> {
+    let total = total_iterations(config, data);
+    let expected_updates = state
+        .iteration
+        .saturating_mul(updates_per_iteration(config));
+    let expected_dir = format!("iter-{:06}", state.iteration);
+    let problem = if state.iteration > total {
+        Some(format!(
+            "iteration {} is beyond the run's {total} iterations",
+            state.iteration
+        ))
+    } else if state.updates != expected_updates {
+        Some(format!(
+            "{} optimizer steps, but {} iterations of this run take {expected_updates}",
+            state.updates, state.iteration
+        ))
+    } else if dir.file_name().is_none_or(|n| n != expected_dir.as_str()) {
+        Some(format!(
+            "iteration {} is stored in {}, expected a folder named {expected_dir}",
+            state.iteration,
+            dir.display()
+        ))
+    } else {
+        None
+    };
+    match problem {
+        Some(p) => Err(Error::invalid(
+            dir.join("state.json").display().to_string(),
+            "iteration",
+            format!("{p}: the state does not match its run; start a new --out folder"),
+        )),
+        None => Ok(()),
     }
 }
 
