@@ -6,11 +6,29 @@
 //! other element we do not know) are skipped silently. Unknown children where they *would*
 //! change the geometry are errors: a plan-view geometry other than the five supported ones, and
 //! lanes described by `<border>` instead of `<width>`.
+//!
+//! Values are checked for physical sense where they are read: a lane 0-10 m wide everywhere
+//! along its section (0 where it opens or ends), some lane vehicles follow at least 0.5 m wide, roads
+//! of positive length up to 100 km, curvature radii of at least 2 m, and at least one road.
+//! Anything else (a 1e9 m lane, a negative width, a 1 mm arc) is nonsense that would silently
+//! distort or exhaust the map sampler.
 
 use roxmltree::{Document, Node};
 
 use super::opendrive::*;
 use crate::{Error, Result};
+
+/// Widest plausible lane (m).
+const MAX_LANE_WIDTH: f64 = 10.0;
+/// Some lane vehicles follow (driving, ramp, entry, exit) must be at least this wide
+/// somewhere (m).
+const MIN_DRIVING_WIDTH: f64 = 0.5;
+/// Longest plausible road (m).
+const MAX_ROAD_LENGTH: f64 = 100_000.0;
+/// Tightest plausible curvature (1/m): a 2 m radius.
+const MAX_CURVATURE: f64 = 0.5;
+/// Rounding slack of a width polynomial that should end at exactly 0 (m).
+const WIDTH_SLACK: f64 = 1e-6;
 
 /// Parses OpenDRIVE text; `source_name` (usually the file path) is used in error messages.
 pub fn parse_xodr(text: &str, source_name: &str) -> Result<OpenDrive> {
@@ -37,7 +55,58 @@ pub fn parse_xodr(text: &str, source_name: &str) -> Result<OpenDrive> {
             _ => {}
         }
     }
+    if out.roads.is_empty() {
+        return Err(cx.err(
+            root,
+            "the document has no <road>; expected at least one road",
+        ));
+    }
+    let widest_driving = out
+        .roads
+        .iter()
+        .flat_map(|r| r.lane_sections.iter().map(move |s| (r, s)))
+        .flat_map(|(r, sec)| {
+            let end = section_end(r, sec);
+            sec.left
+                .iter()
+                .chain(&sec.right)
+                .filter(|l| l.kind.is_graph_lane())
+                .flat_map(move |l| width_samples(l, sec.s, end).map(|(_, w)| w))
+        })
+        .fold(0.0, f64::max);
+    if widest_driving < MIN_DRIVING_WIDTH {
+        return Err(cx.err(
+            root,
+            format!(
+                "no driving lane is {MIN_DRIVING_WIDTH} m wide anywhere (widest {widest_driving} \
+                 m); expected lanes {MIN_DRIVING_WIDTH}-{MAX_LANE_WIDTH} m wide"
+            ),
+        ));
+    }
     Ok(out)
+}
+
+/// Where `sec` ends: the next section's start, or the road's end.
+fn section_end(road: &Road, sec: &LaneSection) -> f64 {
+    road.lane_sections
+        .iter()
+        .map(|s| s.s)
+        .filter(|&s| s > sec.s)
+        .fold(road.length, f64::min)
+}
+
+/// A lane's width at the start, middle and end of each `<width>` record's span within the
+/// section `[start, end]`, with the road s of each sample.
+fn width_samples(lane: &Lane, start: f64, end: f64) -> impl Iterator<Item = (f64, f64)> + '_ {
+    lane.widths.iter().enumerate().flat_map(move |(k, w)| {
+        let span_end = lane
+            .widths
+            .get(k + 1)
+            .map_or(end - start, |next| next.s)
+            .max(w.s);
+        let length = span_end - w.s;
+        [0.0, 0.5, 1.0].map(|f| (start + w.s + f * length, w.value(f * length)))
+    })
 }
 
 struct Ctx<'a, 'input> {
@@ -117,6 +186,24 @@ impl Ctx<'_, '_> {
         Ok(v)
     }
 
+    /// A curvature (1/m) no tighter than a 2 m radius.
+    fn curvature(&self, node: Node, name: &str) -> Result<f64> {
+        let k = self.req_f64(node, name)?;
+        if k.abs() > MAX_CURVATURE {
+            return Err(self.err(
+                node,
+                format!(
+                    "<{}> attribute `{name}` is {k} 1/m, a radius of {} m; expected a radius of \
+                     at least {} m (|{name}| <= {MAX_CURVATURE})",
+                    node.tag_name().name(),
+                    1.0 / k.abs(),
+                    1.0 / MAX_CURVATURE
+                ),
+            ));
+        }
+        Ok(k)
+    }
+
     fn req_i32(&self, node: Node, name: &str) -> Result<i32> {
         let raw = self.req_str(node, name)?;
         raw.trim().parse::<i32>().map_err(|_| {
@@ -184,7 +271,7 @@ impl Ctx<'_, '_> {
         }
         let mut road = Road {
             name: node.attribute("name").unwrap_or("").to_string(),
-            length: self.non_negative(node, "length")?,
+            length: self.road_length(node)?,
             junction,
             predecessor: None,
             successor: None,
@@ -242,7 +329,43 @@ impl Ctx<'_, '_> {
             ));
         }
         sort_by_s(&mut road.lane_sections, |s| s.s);
+        self.check_widths(lanes, &road)?;
         Ok(road)
+    }
+
+    fn road_length(&self, node: Node) -> Result<f64> {
+        let length = self.req_f64(node, "length")?;
+        if !(length > 0.0 && length <= MAX_ROAD_LENGTH) {
+            return Err(self.err(
+                node,
+                format!(
+                    "<road> attribute `length` is {length}; expected metres in (0, {MAX_ROAD_LENGTH}]"
+                ),
+            ));
+        }
+        Ok(length)
+    }
+
+    /// Every lane is 0-10 m wide along its whole section.
+    fn check_widths(&self, lanes: Node, road: &Road) -> Result<()> {
+        for sec in &road.lane_sections {
+            let end = section_end(road, sec);
+            for lane in sec.left.iter().chain(&sec.right) {
+                let bad = width_samples(lane, sec.s, end)
+                    .find(|&(_, w)| !(-WIDTH_SLACK..=MAX_LANE_WIDTH).contains(&w));
+                if let Some((s, w)) = bad {
+                    return Err(self.err(
+                        lanes,
+                        format!(
+                            "road {}: lane {} of the laneSection at s={} is {w} m wide at s={s}; \
+                             expected 0-{MAX_LANE_WIDTH} m",
+                            road.id, lane.id, sec.s
+                        ),
+                    ));
+                }
+            }
+        }
+        Ok(())
     }
 
     fn road_link(&self, node: Node) -> Result<RoadLink> {
@@ -296,11 +419,11 @@ impl Ctx<'_, '_> {
         let kind = match shape.tag_name().name() {
             "line" => GeometryKind::Line,
             "arc" => GeometryKind::Arc {
-                curvature: self.req_f64(shape, "curvature")?,
+                curvature: self.curvature(shape, "curvature")?,
             },
             "spiral" => GeometryKind::Spiral {
-                curv_start: self.req_f64(shape, "curvStart")?,
-                curv_end: self.req_f64(shape, "curvEnd")?,
+                curv_start: self.curvature(shape, "curvStart")?,
+                curv_end: self.curvature(shape, "curvEnd")?,
             },
             "poly3" => GeometryKind::Poly3 {
                 a: self.req_f64(shape, "a")?,

@@ -186,3 +186,40 @@ fn reads_links_junctions_and_other_geometries() {
     let no_contact = text.replace(" contactPoint=\"end\"/></link>", "/></link>");
     assert!(parse_err(&no_contact).1.contains("contactPoint"));
 }
+
+/// Physically absurd maps are refused where they are read, naming the element's line: a lane
+/// 1e9 m wide (which once hung the map sampler), a negative width (lanes silently vanished), a
+/// file without roads, one whose lanes are all 0 m wide, and a 1 mm arc radius.
+#[test]
+fn absurd_geometry_is_refused_with_its_line() {
+    let a9 = a9_text();
+    let wide = a9.replacen("a=\"3.6\"", "a=\"1e9\"", 1);
+    let (line, msg) = parse_err(&wide);
+    assert!(
+        line > 1 && msg.contains("1000000000 m wide") && msg.contains("expected 0-10 m"),
+        "{msg}"
+    );
+    let negative = a9.replacen("a=\"3.6\"", "a=\"-3.6\"", 1);
+    assert!(parse_err(&negative).1.contains("-3.6 m wide"));
+    let (_, msg) = parse_err("<OpenDRIVE><header/></OpenDRIVE>");
+    assert!(msg.contains("no <road>"), "{msg}");
+    let mut zero = a9.clone();
+    for a in ["2.6", "2.7", "3.05", "3.6", "3.7", "3.9", "4.2"] {
+        zero = zero.replace(&format!("a=\"{a}\""), "a=\"0\"");
+    }
+    let (_, msg) = parse_err(&zero);
+    assert!(msg.contains("no driving lane is 0.5 m wide"), "{msg}");
+    let arc = r#"<OpenDRIVE><road id="a" length="10" junction="-1"><planView>
+  <geometry s="0" x="0" y="0" hdg="0" length="10"><arc curvature="1000"/></geometry></planView>
+ <lanes><laneSection s="0"><center><lane id="0" type="none"/></center>
+  <right><lane id="-1" type="driving"><width sOffset="0" a="3" b="0" c="0" d="0"/></lane></right>
+ </laneSection></lanes></road></OpenDRIVE>"#;
+    let (line, msg) = parse_err(arc);
+    assert!(
+        line == 2 && msg.contains("radius of 0.001 m"),
+        "{line}: {msg}"
+    );
+    assert!(parse_xodr(&arc.replace("1000", "0.01"), "t").is_ok());
+    let long = arc.replace("length=\"10\" junction", "length=\"1e9\" junction");
+    assert!(parse_err(&long).1.contains("(0, 100000]"));
+}

@@ -21,23 +21,52 @@ pub struct MapCache {
     pub raster: Arc<RoadRaster>,
 }
 
-/// One [`MapCache`] per distinct map of a batch (scenes of one recording share one).
+/// Road rasters kept at once. A generated long-tail map's raster takes tens of MB (0.25 m
+/// cells over its bounding box), and a training run visits hundreds of maps per device: kept
+/// forever they took 17-23 GB and got a run killed. A batch touches at most a few dozen maps.
+const MAX_CACHED_MAPS: usize = 16;
+
+/// One [`MapCache`] per distinct map of recent batches (scenes of one recording share one); the
+/// least recently used is dropped beyond [`MAX_CACHED_MAPS`].
 #[derive(Debug, Default)]
 pub struct MapCaches {
     /// Keyed by the map's address (an integer, so the cache can move between threads); the
-    /// cache holds the `Arc`, so the address stays taken while its entry lives.
-    by_map: HashMap<usize, MapCache>,
+    /// cache holds the `Arc`, so the address stays taken while its entry lives. The counter
+    /// is when the entry was last used.
+    by_map: HashMap<usize, (MapCache, u64)>,
+    uses: u64,
 }
 
 impl MapCaches {
     pub fn get(&mut self, map: &Arc<Map>) -> MapCache {
-        self.by_map
-            .entry(Arc::as_ptr(map) as usize)
-            .or_insert_with(|| MapCache {
-                map: map.clone(),
-                raster: Arc::new(RoadRaster::new(map, RASTER_CELL)),
-            })
-            .clone()
+        self.uses += 1;
+        let key = Arc::as_ptr(map) as usize;
+        if !self.by_map.contains_key(&key) && self.by_map.len() >= MAX_CACHED_MAPS {
+            let oldest = self.by_map.iter().min_by_key(|(_, (_, used))| *used);
+            if let Some(&oldest) = oldest.map(|(k, _)| k) {
+                self.by_map.remove(&oldest);
+            }
+        }
+        let (cache, used) = self.by_map.entry(key).or_insert_with(|| {
+            (
+                MapCache {
+                    map: map.clone(),
+                    raster: Arc::new(RoadRaster::new(map, RASTER_CELL)),
+                },
+                0,
+            )
+        });
+        *used = self.uses;
+        cache.clone()
+    }
+
+    /// Maps cached now.
+    pub fn len(&self) -> usize {
+        self.by_map.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.by_map.is_empty()
     }
 }
 
@@ -124,6 +153,31 @@ mod tests {
     use super::*;
     use crate::map::{Map, ProceduralMap};
     use crate::test_rng::uniform;
+
+    /// A run visiting many maps keeps at most [`MAX_CACHED_MAPS`] rasters; the least recently
+    /// used goes first, and a map in use is served from its entry, not rebuilt.
+    #[test]
+    fn map_caches_stay_bounded_and_keep_recent_maps() {
+        let od = ProceduralMap::preset("straight")
+            .and_then(|p| p.build())
+            .expect("map");
+        let maps: Vec<Arc<Map>> = (0..MAX_CACHED_MAPS + 4)
+            .map(|_| Arc::new(Map::from_opendrive(&od, "straight").expect("map")))
+            .collect();
+        let mut caches = MapCaches::default();
+        let first = caches.get(&maps[0]);
+        for map in &maps[1..] {
+            caches.get(map);
+            // The first map stays the most recently used.
+            let again = caches.get(&maps[0]);
+            assert!(Arc::ptr_eq(&again.raster, &first.raster));
+        }
+        assert_eq!(caches.len(), MAX_CACHED_MAPS);
+        // Map 1 was used least recently of all: it was evicted and is rebuilt.
+        let map1 = caches.get(&maps[1]);
+        assert!(Arc::ptr_eq(&map1.map, &maps[1]));
+        assert_eq!(caches.len(), MAX_CACHED_MAPS);
+    }
 
     #[test]
     fn batched_collisions_equal_parry2d_pairwise() {
