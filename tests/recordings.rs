@@ -104,7 +104,7 @@ fn to_csv_then_parse_round_trips_exactly() {
         text.push_str(&format!(
             "\"car, \"\"7\"\"\",{},{},{},{},{},{},{},2.845\n",
             s * 0.1,
-            (s * 0.37).sin() * 123.456789,
+            s * 1.3 + (s * 0.37).sin() * 0.123456789,
             -(s * 0.11).cos() / 3.0,
             (s * 0.05).sin() * std::f64::consts::PI,
             13.0 + s / 7.0,
@@ -401,4 +401,26 @@ fn a_horizon_shorter_than_two_samples_is_named_not_a_panic() {
         Err(e) => e.to_string(),
     };
     assert_contains(&message, &["track", "0.05 s horizon", "at least 2 samples"]);
+}
+
+#[test]
+fn an_absurd_position_in_one_row_is_rejected() {
+    let message = error(&with_row("a,0.2,1e308,0,0,1,0,0"));
+    assert_contains(&message, &["line 4", "`x`", "1e308 m", "10000000"]);
+}
+
+/// A row 1000 m off the track (a teleport) would be fitted as driving; it is refused by line.
+#[test]
+fn a_teleporting_row_is_rejected() {
+    let text = format!(
+        "{HEADER}\nj,0,0,0,0,10,0,0\nj,0.1,1,0,0,10,0,0\nj,0.2,1002,0,0,10,0,0\nj,0.3,3,0,0,10,0,0\n"
+    );
+    let message = error(&text);
+    assert_contains(
+        &message,
+        &["line 4", "track `j`", "1001.00 m", "line 3", "jump"],
+    );
+    // Ordinary driving with position noise passes.
+    let ok = text.replace("1002,", "2.3,");
+    Recordings::parse("rec.csv", &ok).unwrap();
 }

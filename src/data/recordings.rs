@@ -22,7 +22,8 @@
 //! strictly increasing times and a uniform sampling period: the period is the median time step
 //! and every step must be within 5% of it, between 1 ms and 1 s (timestamps in seconds). Gaps and jitter are rejected rather than silently
 //! resampled. Values whose magnitude suggests a unit mistake (degrees, km/h, millimetres) are
-//! rejected too.
+//! rejected too, and so are positions beyond 1e7 m and rows whose position jumps further than
+//! twice what the recorded speeds allow plus 1 m (a teleport or a glitch).
 
 use std::collections::HashMap;
 use std::f64::consts::PI;
@@ -63,6 +64,12 @@ const PERIOD_TOLERANCE: f64 = 0.05;
 /// not seconds (milliseconds give periods of 10-1000).
 const MIN_PERIOD: f64 = 1e-3;
 const MAX_PERIOD: f64 = 1.0;
+/// Largest accepted |x|, |y| (m): any local metric frame, UTM included.
+const MAX_COORDINATE: f64 = 1e7;
+/// A step's travelled distance may exceed what its recorded speeds allow by this factor plus
+/// [`JUMP_SLACK`] (position noise) before the row is called a jump (a teleport, a glitch).
+const JUMP_FACTOR: f64 = 2.0;
+const JUMP_SLACK: f64 = 1.0;
 
 /// One vehicle's uniformly sampled recording.
 #[derive(Debug, Clone)]
@@ -431,6 +438,10 @@ fn number(source: &str, line: usize, index: usize, name: &str, text: &str) -> Re
 /// Rejects values whose magnitude suggests a unit mistake.
 fn check_range(source: &str, line: usize, name: &str, v: f64) -> Result<()> {
     let problem = match name {
+        "x" | "y" if v.abs() > MAX_COORDINATE => Some(format!(
+            "position {v:e} m is implausible; expected metres in a local frame with |{name}| <= \
+             {MAX_COORDINATE}"
+        )),
         "heading" if v.abs() > MAX_HEADING => Some(format!(
             "heading {v} looks like degrees; expected radians with |heading| <= 2*pi"
         )),
@@ -552,6 +563,32 @@ impl TrackBuilder {
         Ok(())
     }
 
+    /// Refuses a row whose position is not where the recorded speeds could have taken the
+    /// vehicle: a teleport or a glitch would otherwise be fitted as if it were driving.
+    fn check_jumps(source: &str, track: &RecordedTrack, lines: &[usize]) -> Result<()> {
+        for k in 1..track.len() {
+            let distance = (track.x[k] - track.x[k - 1]).hypot(track.y[k] - track.y[k - 1]);
+            let step = track.t[k] - track.t[k - 1];
+            let allowed = JUMP_FACTOR * track.speed[k].max(track.speed[k - 1]) * step + JUMP_SLACK;
+            if distance > allowed {
+                return Err(Error::invalid(
+                    source,
+                    format!("line {}, columns `x`, `y`", lines[k]),
+                    format!(
+                        "track `{}` moves {distance:.2} m in {step} s from line {}, but its \
+                         recorded speeds ({} and {} m/s) allow at most {allowed:.2} m: a jump \
+                         (teleport or glitch); remove or repair the row",
+                        track.id,
+                        lines[k - 1],
+                        track.speed[k - 1],
+                        track.speed[k]
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
     fn finish(self, source: &str) -> Result<RecordedTrack> {
         let mut track = self.track;
         if track.len() < 2 {
@@ -615,6 +652,7 @@ impl TrackBuilder {
                 ));
             }
         }
+        Self::check_jumps(source, &track, &self.lines)?;
         track.period = period;
         Ok(track)
     }

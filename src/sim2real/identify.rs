@@ -8,7 +8,7 @@ use rayon::prelude::*;
 
 use super::discover::discover;
 use super::fit::{Fit, FitOptions, evaluate, fit, standard_errors};
-use super::locate::{Mismatch, locate};
+use super::locate::{ChannelRms, Mismatch, locate};
 use super::noise::NoiseLevels;
 use super::report::{Comparison, DiscoveredCandidate, Report};
 use super::simulate::{Candidate, StepError, batches};
@@ -217,6 +217,15 @@ pub fn identify(
     progress("nominal refit: wheelbase by gradient descent");
     let mut refit = fit_one(&nominal(true));
     standard_errors(&mut refit.fit, &train_b, &split.train, &plain);
+    // Every finding must beat the better of the declared and the refitted nominal model, so
+    // none makes held-out error worse than the declared model's (a refit can lose to it when
+    // gradient descent is cut short, e.g. `--iterations 1`).
+    let held_out_rmse = |e: &Evaluated| ChannelRms::of(e.errors.iter().flatten()).pos_m;
+    let reference = if held_out_rmse(&refit) <= held_out_rmse(&baseline) {
+        &refit
+    } else {
+        &baseline
+    };
 
     let tried: Vec<Effect> = options
         .effects
@@ -240,7 +249,7 @@ pub fn identify(
     let mut ranked: Vec<(usize, Comparison)> = singles
         .iter()
         .enumerate()
-        .map(|(k, s)| (k, compare(s, &refit)))
+        .map(|(k, s)| (k, compare(s, reference)))
         .collect();
     ranked.sort_by(|a, b| a.1.rmse_after_m.total_cmp(&b.1.rmse_after_m));
 
@@ -260,7 +269,7 @@ pub fn identify(
             ..Candidate::with_effects(Vec::new())
         });
         standard_errors(&mut out.fit, &train_b, &split.train, &plain);
-        let comparison = compare(&out, &refit);
+        let comparison = compare(&out, reference);
         (out, comparison)
     });
 
@@ -341,8 +350,8 @@ pub fn identify(
             errors: e.errors.clone(),
         },
         None => Evaluated {
-            fit: refit.fit.clone(),
-            errors: refit.errors.clone(),
+            fit: reference.fit.clone(),
+            errors: reference.errors.clone(),
         },
     };
     let final_short = short_errors(&final_model.fit);
