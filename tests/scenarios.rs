@@ -496,3 +496,48 @@ fn braked_vehicles_stop_and_stay_stopped_on_real_scenes_and_stop_families() {
     // The heroes stop, and vehicles behind them or braking hard from town speeds come to rest.
     assert!(at_rest >= stops.len(), "{at_rest} of {agents} reached rest");
 }
+
+/// A scenario file with nonsense in it is refused naming the file and the field: a heading in
+/// degrees, a 100 m vehicle, a negative speed, an unknown key, a map parameter out of range.
+#[test]
+fn scenario_files_with_nonsense_name_the_file_and_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let family = &families()[0];
+    let s = sample_scenario(
+        family,
+        &ctx(),
+        family_seed(11, &family.name, 0),
+        ScenarioSet::Eval,
+        0,
+    )
+    .expect("a scenario");
+    let path = dir.path().join("bad.json");
+    let refused = |edit: &dyn Fn(&mut serde_json::Value), expected: &[&str]| {
+        let mut json = serde_json::to_value(&s).expect("json");
+        edit(&mut json);
+        std::fs::write(&path, serde_json::to_string_pretty(&json).unwrap()).unwrap();
+        let err = ConcreteScenario::from_json_file(&path)
+            .expect_err("refused")
+            .to_string();
+        assert!(err.contains("bad.json"), "{err}");
+        for part in expected {
+            assert!(err.contains(part), "`{part}` not in {err}");
+        }
+    };
+    let last = s.history_steps;
+    refused(
+        &|j| j["agents"][0]["states"][last][2] = 90.0.into(),
+        &["agents[0].states", "degrees"],
+    );
+    refused(
+        &|j| j["agents"][1]["length"] = 100.0.into(),
+        &["agents[1].length", "1-25 m"],
+    );
+    refused(
+        &|j| j["agents"][0]["states"][last][3] = (-5.0).into(),
+        &["agents[0].states", "speed -5"],
+    );
+    refused(&|j| j["colour"] = "red".into(), &["colour"]);
+    refused(&|j| j["map"]["lane_width"] = 1e9.into(), &["map", "lane"]);
+    refused(&|j| j["map"]["banking"] = 0.1.into(), &["banking"]);
+}

@@ -329,6 +329,21 @@ fn a_run_file_names_a_dynamics_file_relative_to_itself() {
         message.contains("dynamics.toml") && message.contains("tau_s"),
         "{message}"
     );
+    // An unknown key in a term is a typo, named with its line, never silently dropped.
+    std::fs::write(
+        &path,
+        "[[terms]]\neffect = \"accel_lag\"\nparams = { tau_s = 0.4 }\nenabled = false\n",
+    )
+    .expect("written");
+    let message = DynamicsFile::load(&path)
+        .expect_err("unknown key")
+        .to_string();
+    assert!(
+        message.contains("dynamics.toml")
+            && message.contains("enabled")
+            && message.contains("line 4"),
+        "{message}"
+    );
     // A discovered term loads; one outside its equation's library or not finite is named.
     std::fs::write(
         &path,

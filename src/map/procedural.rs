@@ -24,7 +24,7 @@ pub const JUNCTION_LENGTH: f64 = 5.0;
 
 /// Cross-section of straight and curved roads.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, Default)]
-#[serde(tag = "type", rename_all = "snake_case")]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
 pub enum Layout {
     /// One carriageway; all lanes travel along the reference line.
     #[default]
@@ -35,7 +35,7 @@ pub enum Layout {
 
 /// Parameters of one generated map; lengths in metres, curvature in 1/m.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "kind", rename_all = "snake_case")]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum ProceduralMap {
     Straight {
         lanes: usize,

@@ -350,3 +350,18 @@ fn every_preset_builds_a_drivable_connected_map() {
     }
     assert!(ProceduralMap::preset("roundabout").is_err());
 }
+
+/// A key the map kind does not have (a typo, a parameter of another kind) is an error naming
+/// it, in the map and in its layout, not silently the default.
+#[test]
+fn unknown_keys_in_a_procedural_spec_are_named() {
+    let spec = r#"{"kind":"straight","lanes":3,"lane_width":3.5,"length":300,"lenght":500}"#;
+    let err = serde_json::from_str::<ProceduralMap>(spec).expect_err("typo");
+    assert!(err.to_string().contains("lenght"), "{err}");
+    let divided = r#"{"kind":"straight","lanes":2,"lane_width":3.5,"length":300,
+        "layout":{"type":"divided","median_width":2.0}}"#;
+    assert!(serde_json::from_str::<ProceduralMap>(divided).is_ok());
+    let typo = divided.replace("median_width", "median");
+    let err = serde_json::from_str::<ProceduralMap>(&typo).expect_err("layout typo");
+    assert!(err.to_string().contains("median"), "{err}");
+}

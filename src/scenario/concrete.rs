@@ -100,6 +100,59 @@ pub struct ConcreteScenario {
     pub reference: ReferenceRun,
 }
 
+/// Longest and shortest plausible vehicle (m), and widths.
+const VEHICLE_LENGTH: std::ops::RangeInclusive<f64> = 1.0..=25.0;
+const VEHICLE_WIDTH: std::ops::RangeInclusive<f64> = 0.5..=5.0;
+/// Largest plausible |x|, |y| (m) and |heading| (rad: one turn plus slack for unwrapped angles).
+const MAX_COORDINATE: f64 = 1e7;
+const MAX_HEADING: f64 = 2.0 * std::f64::consts::PI + 0.01;
+
+/// One vehicle's size and states are physical: a size a vehicle can have, finite positions,
+/// headings in radians (degrees are refused), speeds in m/s.
+fn check_agent(source: &str, i: usize, a: &ScenarioAgent) -> Result<()> {
+    let fail = |field: String, message: String| Err(Error::invalid(source, field, message));
+    if !VEHICLE_LENGTH.contains(&a.length) {
+        return fail(
+            format!("agents[{i}].length"),
+            format!("{} m: expected a vehicle 1-25 m long", a.length),
+        );
+    }
+    if !VEHICLE_WIDTH.contains(&a.width) {
+        return fail(
+            format!("agents[{i}].width"),
+            format!("{} m: expected a vehicle 0.5-5 m wide", a.width),
+        );
+    }
+    let max_speed = crate::data::track::MAX_SPEED;
+    for (k, state) in a.states.iter().enumerate() {
+        let Some([x, y, heading, speed]) = *state else {
+            continue;
+        };
+        let field = format!("agents[{i}].states[{k}]");
+        if !(x.abs() <= MAX_COORDINATE && y.abs() <= MAX_COORDINATE) {
+            return fail(
+                field,
+                format!("position ({x}, {y}): expected metres, |x|, |y| <= 1e7"),
+            );
+        }
+        if heading.is_nan() || heading.abs() > MAX_HEADING {
+            return fail(
+                field,
+                format!(
+                    "heading {heading} looks like degrees: expected radians, |heading| <= 2 pi"
+                ),
+            );
+        }
+        if !(0.0..=max_speed).contains(&speed) {
+            return fail(
+                field,
+                format!("speed {speed}: expected m/s in [0, {max_speed}]"),
+            );
+        }
+    }
+    Ok(())
+}
+
 impl ConcreteScenario {
     /// `family-set-index`, e.g. `cut_in_left-eval-003`.
     pub fn id(&self) -> String {
@@ -133,10 +186,17 @@ impl ConcreteScenario {
         Ok(scenario)
     }
 
-    /// Structural checks of a loaded file (indices in range, history lengths).
+    /// Checks of a loaded file: indices in range, history lengths, physical values (vehicle
+    /// sizes, finite positions, headings in radians, speeds), and the map's parameters.
     fn check(&self, source: &str) -> Result<()> {
         let steps = self.history_steps + 1;
         let n = self.agents.len();
+        self.map
+            .build()
+            .map_err(|e| Error::invalid(source, "map", e.to_string()))?;
+        for (i, a) in self.agents.iter().enumerate() {
+            check_agent(source, i, a)?;
+        }
         for (i, a) in self.agents.iter().enumerate() {
             if a.states.len() != steps {
                 return Err(Error::invalid(

@@ -167,6 +167,7 @@ pub fn unbounded(value: f64, spec: &ParamSpec) -> f64 {
 
 /// One identified term with its fitted parameter values.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct FittedTerm {
     pub effect: Effect,
     /// Parameter values by name (SI units as in [`Effect::params`]).
