@@ -38,6 +38,34 @@ pub fn atomic_write(path: &Path, bytes: &[u8]) -> Result<()> {
     })
 }
 
+/// Reads a text file; bytes that are not UTF-8 are an error naming the line and column where
+/// they start (a binary or Latin-1 file given by mistake), not a bare "invalid UTF-8".
+pub fn read_text(path: &Path) -> Result<String> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    utf8_text(bytes, &path.display().to_string())
+}
+
+/// `bytes` as text, or an error naming `source_name` and the line and column of the first
+/// byte that is not UTF-8.
+pub fn utf8_text(bytes: Vec<u8>, source_name: &str) -> Result<String> {
+    String::from_utf8(bytes).map_err(|e| {
+        let valid = e.utf8_error().valid_up_to();
+        let bytes = e.as_bytes();
+        // Everything before `valid` is UTF-8, so it can be counted as text.
+        let before = std::str::from_utf8(&bytes[..valid]).unwrap_or_default();
+        let (line, column) = line_column(before, before.len());
+        Error::Parse {
+            source_name: source_name.to_string(),
+            line,
+            column,
+            message: format!(
+                "byte 0x{:02x} is not UTF-8 text; expected a UTF-8 text file",
+                bytes[valid]
+            ),
+        }
+    })
+}
+
 /// Parses a TOML document; errors name `source_name` and the 1-based line and column.
 pub fn parse_toml<T: serde::de::DeserializeOwned>(text: &str, source_name: &str) -> Result<T> {
     toml::from_str(text).map_err(|e| {

@@ -424,3 +424,16 @@ fn a_teleporting_row_is_rejected() {
     let ok = text.replace("1002,", "2.3,");
     Recordings::parse("rec.csv", &ok).unwrap();
 }
+
+/// A file that is not UTF-8 text (Latin-1, a binary given by mistake) is named with the line
+/// and column where the bad byte sits.
+#[test]
+fn non_utf8_bytes_name_their_line() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("latin1.csv");
+    let mut bytes = format!("{HEADER}\na,0.0,0,0,0,1,0,0\n").into_bytes();
+    bytes.extend_from_slice(b"caf\xe9,0.1,0,0,0,1,0,0\n");
+    std::fs::write(&path, bytes).expect("write");
+    let message = Recordings::load(&path).expect_err("not UTF-8").to_string();
+    assert_contains(&message, &["latin1.csv", "line 3", "0xe9", "UTF-8"]);
+}

@@ -147,7 +147,7 @@ pub struct Recordings {
 impl Recordings {
     /// Reads and parses a recordings CSV file.
     pub fn load(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::io::read_text(path)?;
         Self::parse(&path.display().to_string(), &text)
     }
 

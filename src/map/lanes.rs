@@ -201,7 +201,7 @@ impl Map {
     }
 
     pub fn from_xodr_file(path: &Path) -> Result<Map> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::io::read_text(path)?;
         Map::from_xodr_str(&text, &path.display().to_string())
     }
 

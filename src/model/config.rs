@@ -79,7 +79,7 @@ impl ModelConfig {
 
     /// Reads a TOML file; missing fields take the defaults.
     pub fn from_toml_file(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::io::read_text(path)?;
         Self::from_toml_str(&text, &path.display().to_string())
     }
 

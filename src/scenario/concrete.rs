@@ -175,7 +175,7 @@ impl ConcreteScenario {
     }
 
     pub fn from_json_file(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::io::read_text(path)?;
         let scenario: Self = serde_json::from_str(&text).map_err(|e| Error::Parse {
             source_name: path.display().to_string(),
             line: e.line(),

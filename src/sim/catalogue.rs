@@ -198,7 +198,7 @@ pub struct DiscoveredTerm {
 
 impl DynamicsFile {
     pub fn load(path: &std::path::Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::io::read_text(path)?;
         let file: DynamicsFile = crate::io::parse_toml(&text, &path.display().to_string())?;
         file.validate(&path.display().to_string())?;
         Ok(file)

@@ -406,7 +406,7 @@ impl TrainConfig {
     /// Reads and validates a run file; a relative reference checkpoint is resolved against the
     /// file's folder.
     pub fn from_toml_file(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::io::read_text(path)?;
         let mut config = Self::from_toml_str(&text, &path.display().to_string())?;
         if let Some(reference) = config.reference.as_mut()
             && reference.checkpoint.is_relative()

@@ -295,13 +295,7 @@ fn read_text(path: &Path) -> Result<String> {
     } else {
         bytes
     };
-    String::from_utf8(bytes).map_err(|e| {
-        let line = 1 + e.as_bytes()[..e.utf8_error().valid_up_to()]
-            .iter()
-            .filter(|&&b| b == b'\n')
-            .count();
-        Error::invalid(source, format!("line {line}"), "text is not UTF-8")
-    })
+    crate::io::utf8_text(bytes, &source)
 }
 
 /// The vehicles' tracks: time = (step - first step of the file) x timeStepSize, so the clip
