@@ -38,6 +38,67 @@ pub fn atomic_write(path: &Path, bytes: &[u8]) -> Result<()> {
     })
 }
 
+/// What an output path must be.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OutputKind {
+    File,
+    Folder,
+}
+
+/// Checks, before any work, that `path` can be written as `kind`: it is not the other kind,
+/// nothing on its way is a file, and its nearest existing folder accepts a new file (probed
+/// with a file created and removed at once). `flag` names the option in the error. Leaves the
+/// file system as it was, so a command refused here has written nothing.
+pub fn check_output(path: &Path, kind: OutputKind, flag: &str) -> Result<()> {
+    let fail = |why: String| {
+        Err(Error::InvalidArgument(format!(
+            "{flag} {}: {why}",
+            path.display()
+        )))
+    };
+    match (path.metadata(), kind) {
+        (Ok(m), OutputKind::File) if m.is_dir() => {
+            return fail("is a folder; expected a file path".into());
+        }
+        (Ok(m), OutputKind::Folder) if !m.is_dir() => {
+            return fail("is a file; expected a folder".into());
+        }
+        _ => {}
+    }
+    let existing = path
+        .ancestors()
+        .skip(usize::from(kind == OutputKind::File || !path.is_dir()))
+        .map(|a| {
+            if a.as_os_str().is_empty() {
+                Path::new(".")
+            } else {
+                a
+            }
+        })
+        .find(|a| a.exists());
+    let Some(folder) = existing else {
+        return fail("no part of the path exists".into());
+    };
+    if !folder.is_dir() {
+        return fail(format!(
+            "{} is a file, so nothing can be written under it",
+            folder.display()
+        ));
+    }
+    let probe = folder.join(format!(".rtr-write-probe.{}", std::process::id()));
+    match std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&probe)
+    {
+        Ok(_) => {
+            let _ = std::fs::remove_file(&probe);
+            Ok(())
+        }
+        Err(e) => fail(format!("cannot write in {}: {e}", folder.display())),
+    }
+}
+
 /// Reads a text file; bytes that are not UTF-8 are an error naming the line and column where
 /// they start (a binary or Latin-1 file given by mistake), not a bare "invalid UTF-8".
 pub fn read_text(path: &Path) -> Result<String> {

@@ -7,6 +7,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 
 use rtr::backend::Backend;
 use rtr::data::{A9Dataset, SceneConfig, a9, commonroad, summarize};
+use rtr::io::{OutputKind, check_output};
 use rtr::map::{LaneGraph, Map, ProceduralMap, to_xodr};
 use rtr::model::{ModelConfig, PolicyNetwork, ValueNetwork};
 use rtr::render::{RenderOptions, output_paths, render_map, render_scene};
@@ -595,6 +596,9 @@ fn eval(args: EvalArgs) -> Result<()> {
             "nothing to evaluate: pass --checkpoint DIR (repeatable) and/or --idm".into(),
         ));
     }
+    if let Some(out) = &args.out {
+        check_output(out, OutputKind::Folder, "--out")?;
+    }
     let mut sets = args
         .set
         .iter()
@@ -664,6 +668,9 @@ fn downstream(args: DownstreamArgs) -> Result<()> {
     use rtr::eval::downstream::{DownstreamConfig, downstream, downstream_table};
     use rtr::eval::study::load_entries;
     use rtr::eval::{EvalConfig, EvalScenes};
+    if let Some(out) = &args.out {
+        check_output(out, OutputKind::Folder, "--out")?;
+    }
     let entries = load_entries(&args.checkpoints, args.idm, &args.backend.device(false)?)?;
     let dataset = args.data.load()?;
     let split = dataset.scenes(&SceneConfig::default())?;
@@ -712,6 +719,7 @@ fn downstream(args: DownstreamArgs) -> Result<()> {
 fn curate(args: CurateArgs) -> Result<()> {
     use rtr::eval::curate::scene_outcomes;
     use rtr::eval::{EvalConfig, TrainedPolicy};
+    check_output(&args.out, OutputKind::File, "--out")?;
     let device = args.backend.device(false)?;
     let trained = TrainedPolicy::load(&args.checkpoint, &device)?;
     let dataset = args.data.load()?;
@@ -768,6 +776,7 @@ fn sweep(args: SweepArgs) -> Result<()> {
     use rtr::eval::sweep::{evaluate_points, parse_points, train_points, write_sweep};
     use rtr::eval::{EvalConfig, EvalSet, load_sets};
     let points = parse_points(&args.points)?;
+    check_output(&args.out, OutputKind::Folder, "--out")?;
     let sets = args
         .set
         .iter()
@@ -817,6 +826,13 @@ fn sim2real(args: Sim2RealArgs) -> Result<()> {
             args.horizon
         )));
     }
+    check_output(&args.report, OutputKind::File, "--report")?;
+    if let Some(dir) = &args.plots {
+        check_output(dir, OutputKind::Folder, "--plots")?;
+    }
+    if let Some(path) = &args.save_dynamics {
+        check_output(path, OutputKind::File, "--save-dynamics")?;
+    }
     let (recordings, commands_inferred) = match &args.recordings {
         Some(path) => (rtr::data::Recordings::load(path)?, false),
         None => (
@@ -865,6 +881,7 @@ fn sim2real(args: Sim2RealArgs) -> Result<()> {
 
 fn generate_recordings(effect: &str, seed: u64, tracks: usize, out: &Path) -> Result<()> {
     use rtr::sim2real::{Effect, GeneratorConfig, Uncatalogued, generate};
+    check_output(out, OutputKind::File, "--out")?;
     let mut config = match effect {
         "none" => GeneratorConfig::with_effect(None, seed),
         name => match (Effect::from_name(name), Uncatalogued::typical(name)) {
@@ -918,6 +935,7 @@ fn train(args: TrainArgs) -> Result<()> {
             .map_or("run".into(), |s| s.to_owned());
         PathBuf::from("runs").join(stem)
     });
+    check_output(&out, OutputKind::Folder, "--out")?;
     let dataset = args.data.load()?;
     let method = config.method.name();
     let progress = indicatif::ProgressBar::new(0).with_style(
