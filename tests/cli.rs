@@ -159,7 +159,7 @@ fn bench_sim_prints_its_figures_and_names_missing_backends() {
         let out = rtr(&["bench", bench, "--devices", "0"]);
         assert!(!out.status.success());
         assert!(
-            String::from_utf8_lossy(&out.stderr).contains("--devices must be at least 1"),
+            String::from_utf8_lossy(&out.stderr).contains("'0' for '--devices"),
             "{}",
             String::from_utf8_lossy(&out.stderr)
         );

@@ -1104,23 +1104,14 @@ fn bench(command: BenchCommand) -> Result<()> {
 }
 
 /// `--devices` checked, or the backend's default worker count.
+/// `--devices` (at least 1, checked by its parser), or the backend's default.
 fn device_count(devices: Option<usize>, backend: Backend) -> Result<usize> {
-    match devices {
-        Some(0) => Err(Error::InvalidArgument(
-            "--devices must be at least 1".into(),
-        )),
-        Some(n) => Ok(n),
-        None => Ok(rtr::train::shards::default_devices(backend)),
-    }
+    Ok(devices.unwrap_or_else(|| rtr::train::shards::default_devices(backend)))
 }
 
-/// The A9 map and the checked repetition count of a simulator or model benchmark.
+/// The A9 map and the repetition count (at least 1, checked by its parser) of a simulator or
+/// model benchmark.
 fn bench_inputs(args: &BenchArgs) -> Result<(std::sync::Arc<Map>, usize)> {
-    if args.repetitions == 0 {
-        return Err(Error::InvalidArgument(
-            "--repetitions must be at least 1".into(),
-        ));
-    }
     let dir = args.data.data.clone().unwrap_or_else(a9::default_dir);
     let map = std::sync::Arc::new(Map::from_xodr_file(&dir.join(a9::STATIC_FILE))?);
     Ok((map, args.repetitions))
