@@ -67,12 +67,6 @@ struct View {
 
 impl View {
     fn fit(map: &Map, opts: &RenderOptions) -> Result<View> {
-        if !(16..=MAX_WIDTH_PX).contains(&opts.width_px) {
-            return Err(Error::InvalidArgument(format!(
-                "image width {} px: expected 16 to {MAX_WIDTH_PX} px",
-                opts.width_px
-            )));
-        }
         // Axial mean of lane headings (directions modulo pi), so opposite carriageways agree.
         let (mut s2, mut c2) = (0.0, 0.0);
         for lane in map.lanes() {
@@ -148,7 +142,27 @@ pub fn render_map(map: &Map, path: &Path, opts: &RenderOptions) -> Result<()> {
     render(map, None, path, opts)
 }
 
+/// What `render_scene` and `render_map` refuse before drawing, checked without a map (so a
+/// command can refuse it before loading one): a width outside 16 to [`MAX_WIDTH_PX`] px, a
+/// file name that is not `.png` or `.svg`.
+pub fn check_target(path: &Path, opts: &RenderOptions) -> Result<()> {
+    if !(16..=MAX_WIDTH_PX).contains(&opts.width_px) {
+        return Err(Error::InvalidArgument(format!(
+            "image width {} px: expected 16 to {MAX_WIDTH_PX} px",
+            opts.width_px
+        )));
+    }
+    match path.extension().and_then(|e| e.to_str()).unwrap_or("") {
+        "svg" | "png" => Ok(()),
+        other => Err(Error::InvalidArgument(format!(
+            "{}: cannot render to `.{other}`: expected a .png or .svg file name",
+            path.display()
+        ))),
+    }
+}
+
 fn render(map: &Map, scene: Option<&Scene>, path: &Path, opts: &RenderOptions) -> Result<()> {
+    check_target(path, opts)?;
     let view = View::fit(map, opts)?;
     let size = (opts.width_px, view.height_px);
     let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
@@ -157,14 +171,11 @@ fn render(map: &Map, scene: Option<&Scene>, path: &Path, opts: &RenderOptions) -
             let backend = SVGBackend::new(tmp, size);
             draw(backend.into_drawing_area(), map, scene, &view, opts)
         }),
-        "png" => atomic_write_with(path, |tmp| {
+        // `.png`: `check_target` let no other extension through.
+        _ => atomic_write_with(path, |tmp| {
             let backend = BitMapBackend::new(tmp, size);
             draw(backend.into_drawing_area(), map, scene, &view, opts)
         }),
-        other => Err(Error::InvalidArgument(format!(
-            "{}: cannot render to `.{other}`: expected a .png or .svg file name",
-            path.display()
-        ))),
     }
 }
 

@@ -54,6 +54,32 @@ pub fn point_dir(out: &Path, lambda: f64, alpha: f64) -> PathBuf {
     out.join(format!("lambda{lambda}_alpha{alpha}"))
 }
 
+/// The run config of one point: `base` with its lambda and alpha, validated.
+fn point_config(base: &TrainConfig, lambda: f64, alpha: f64) -> Result<TrainConfig> {
+    let mut config = base.clone();
+    config.lambda = lambda;
+    config.alpha = alpha;
+    config.validate("sweep point")?;
+    Ok(config)
+}
+
+/// Refuses what [`train_points`] would refuse, before any data is loaded or point trained: a
+/// base run file of another method than RTR, a point not yet finished that its config rejects.
+pub fn check_points(base: &TrainConfig, points: &[(f64, f64)], out: &Path) -> Result<()> {
+    if base.method != Method::Rtr {
+        return Err(Error::InvalidArgument(format!(
+            "a lambda x alpha sweep trains RTR, but the base run file says method = \"{}\"",
+            base.method.name()
+        )));
+    }
+    for &(lambda, alpha) in points {
+        if !point_dir(out, lambda, alpha).join("policy.bpk").is_file() {
+            point_config(base, lambda, alpha)?;
+        }
+    }
+    Ok(())
+}
+
 /// Trains every point not yet finished; returns the run folders in point order.
 pub fn train_points(
     base: &TrainConfig,
@@ -62,12 +88,7 @@ pub fn train_points(
     out: &Path,
     progress: &dyn Fn(&str) -> ProgressBar,
 ) -> Result<Vec<PathBuf>> {
-    if base.method != Method::Rtr {
-        return Err(Error::InvalidArgument(format!(
-            "a lambda x alpha sweep trains RTR, but the base run file says method = \"{}\"",
-            base.method.name()
-        )));
-    }
+    check_points(base, points, out)?;
     points
         .iter()
         .map(|&(lambda, alpha)| {
@@ -75,10 +96,7 @@ pub fn train_points(
             if dir.join("policy.bpk").is_file() {
                 return Ok(dir);
             }
-            let mut config = base.clone();
-            config.lambda = lambda;
-            config.alpha = alpha;
-            config.validate("sweep point")?;
+            let config = point_config(base, lambda, alpha)?;
             let resume = dir.join("checkpoints").is_dir();
             let bar = progress(&format!("lambda {lambda} alpha {alpha}"));
             crate::train::session::train(config, dataset, &dir, resume, &bar)?;

@@ -58,6 +58,53 @@ struct Timed {
     peak_rss_mb: Option<f64>,
 }
 
+/// The run config `bench_training` times `method` with, validated.
+fn bench_config(
+    method: Method,
+    backend: Backend,
+    model: &ModelConfig,
+    il_minibatch: usize,
+    ppo_batch: usize,
+    ppo_minibatch: usize,
+    device_count: usize,
+) -> Result<TrainConfig> {
+    let mut config =
+        TrainConfig::from_toml_str(&format!("method = \"{}\"", method.name()), "bench")?;
+    config.model = model.clone();
+    config.run.backend = backend;
+    config.run.max_iterations = Some(1);
+    config.imitation.minibatch = il_minibatch;
+    config.ppo.batch = ppo_batch;
+    config.ppo.minibatch = ppo_minibatch;
+    config.run.devices = Some(device_count);
+    config.validate("bench")?;
+    Ok(config)
+}
+
+/// Refuses what `bench_training` would refuse about its settings (a backend not built in,
+/// sizes its configs reject), with the same messages, before any data is loaded.
+pub fn check_settings(
+    backend: Backend,
+    model: &ModelConfig,
+    il_minibatch: usize,
+    ppo_batch: usize,
+    ppo_minibatch: usize,
+    device_count: usize,
+) -> Result<()> {
+    for method in [Method::Il, Method::Rl] {
+        bench_config(
+            method,
+            backend,
+            model,
+            il_minibatch,
+            ppo_batch,
+            ppo_minibatch,
+            device_count,
+        )?;
+    }
+    backend.device(true).map(|_| ())
+}
+
 /// Times one IL step and one RL (factorized PPO) iteration.
 pub fn bench_training(
     dataset: &A9Dataset,
@@ -69,16 +116,15 @@ pub fn bench_training(
     device_count: usize,
 ) -> Result<TrainBenchReport> {
     let run = |method: Method| -> Result<Timed> {
-        let mut config =
-            TrainConfig::from_toml_str(&format!("method = \"{}\"", method.name()), "bench")?;
-        config.model = model.clone();
-        config.run.backend = backend;
-        config.run.max_iterations = Some(1);
-        config.imitation.minibatch = il_minibatch;
-        config.ppo.batch = ppo_batch;
-        config.ppo.minibatch = ppo_minibatch;
-        config.run.devices = Some(device_count);
-        config.validate("bench")?;
+        let config = bench_config(
+            method,
+            backend,
+            &model,
+            il_minibatch,
+            ppo_batch,
+            ppo_minibatch,
+            device_count,
+        )?;
         let data = training_data(dataset, &config)?;
         let dir = std::env::temp_dir().join(format!(
             "rtr-bench-{}-{}",

@@ -158,6 +158,28 @@ pub fn latest(run_dir: &Path) -> Result<Option<PathBuf>> {
     }
 }
 
+/// The checkpoint a run in `run_dir` starts from: with `resume` the newest one, which must
+/// exist; without, none, and `run_dir` must hold no run (it is never overwritten). Cheap, so a
+/// command can refuse a wrong `--resume` before loading any data.
+pub fn resume_point(run_dir: &Path, resume: bool) -> Result<Option<PathBuf>> {
+    match (latest(run_dir)?, resume) {
+        (Some(dir), true) => Ok(Some(dir)),
+        (Some(dir), false) => Err(Error::InvalidArgument(format!(
+            "{} already holds a run (checkpoint {}): pass --resume to continue it, or \
+             choose another --out folder",
+            run_dir.display(),
+            dir.display()
+        ))),
+        (None, true) => Err(Error::InvalidArgument(format!(
+            "{}: no checkpoint to resume ({} is missing); drop --resume to start a new \
+             run there",
+            run_dir.display(),
+            run_dir.join("checkpoints").join(LATEST).display()
+        ))),
+        (None, false) => Ok(None),
+    }
+}
+
 /// Writes a checkpoint for `state.iteration` and points `latest` at it.
 pub fn save(
     run_dir: &Path,

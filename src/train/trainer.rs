@@ -181,9 +181,9 @@ impl<'d> Trainer<'d> {
             .ok_or_else(|| Error::InvalidArgument("training needs at least one device".into()))?;
         let config_toml = toml::to_string(&config)
             .map_err(|e| Error::InvalidArgument(format!("config does not serialise: {e}")))?;
-        let existing = checkpoint::latest(run_dir)?;
-        let (policy, value, policy_optimizer, value_optimizer, state) = match (existing, resume) {
-            (Some(dir), true) => {
+        let start = checkpoint::resume_point(run_dir, resume)?;
+        let (policy, value, policy_optimizer, value_optimizer, state) = match start {
+            Some(dir) => {
                 let c = checkpoint::load(
                     &dir,
                     &config.model,
@@ -210,23 +210,7 @@ impl<'d> Trainer<'d> {
                     c.state,
                 )
             }
-            (Some(dir), false) => {
-                return Err(Error::InvalidArgument(format!(
-                    "{} already holds a run (checkpoint {}): pass --resume to continue it, or \
-                     choose another --out folder",
-                    run_dir.display(),
-                    dir.display()
-                )));
-            }
-            (None, true) => {
-                return Err(Error::InvalidArgument(format!(
-                    "{}: no checkpoint to resume ({} is missing); drop --resume to start a new \
-                     run there",
-                    run_dir.display(),
-                    run_dir.join("checkpoints").join("latest").display()
-                )));
-            }
-            (None, false) => {
+            None => {
                 // Initialisation draws from the device's global RNG, and burn initialises
                 // parameters lazily: seed, then force every value, under a lock, so runs in
                 // parallel threads (tests) cannot interleave their draws.

@@ -1,0 +1,91 @@
+//! Arguments and helpers shared by several subcommands: counts, the A9 data folder, map sources.
+
+use std::path::{Path, PathBuf};
+
+use clap::{Args, ValueEnum};
+
+use rtr::backend::Backend;
+use rtr::data::{A9Dataset, a9};
+use rtr::map::{Map, ProceduralMap};
+use rtr::render::output_paths;
+use rtr::{Error, Result};
+
+/// A count flag within `min..=max`; clap's error names the flag, the value and the range.
+pub fn count(min: u64, max: u64) -> impl clap::builder::TypedValueParser<Value = usize> {
+    use clap::builder::TypedValueParser;
+    clap::value_parser!(u64)
+        .range(min..=max)
+        .map(|v| usize::try_from(v).unwrap_or(usize::MAX))
+}
+
+#[derive(Args)]
+pub struct DataArgs {
+    /// Folder with the AUTOMATUM A9 files (default: the copy shipped in data/automatum-a9).
+    #[arg(long)]
+    pub data: Option<PathBuf>,
+}
+
+impl DataArgs {
+    pub fn load(&self) -> Result<A9Dataset> {
+        let dir = self.data.clone().unwrap_or_else(a9::default_dir);
+        A9Dataset::load(&dir)
+    }
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+pub enum Split {
+    Train,
+    Test,
+}
+
+#[derive(Args)]
+#[group(required = true, multiple = false)]
+pub struct MapSource {
+    /// An OpenDRIVE file.
+    #[arg(long)]
+    xodr: Option<PathBuf>,
+    /// A generated map: a preset name (straight, curve, on_ramp_merge, off_ramp_fork,
+    /// lane_drop) or a JSON object such as
+    /// '{"kind":"lane_drop","lanes":3,"lane_width":3.75,"length":500,"drop_s":200,"taper_length":100}'.
+    #[arg(long)]
+    procedural: Option<String>,
+}
+
+impl MapSource {
+    pub fn load(&self) -> Result<Map> {
+        match (&self.xodr, &self.procedural) {
+            (Some(path), _) => Map::from_xodr_file(path),
+            (None, Some(spec)) => {
+                let od = self.procedural_spec(spec)?.build()?;
+                Map::from_opendrive(&od, &format!("procedural:{spec}"))
+            }
+            (None, None) => Err(Error::InvalidArgument("give --xodr or --procedural".into())),
+        }
+    }
+
+    fn procedural_spec(&self, spec: &str) -> Result<ProceduralMap> {
+        if spec.trim_start().starts_with('{') {
+            serde_json::from_str(spec).map_err(|e| Error::Parse {
+                source_name: "--procedural".into(),
+                line: e.line(),
+                column: e.column(),
+                message: e.to_string(),
+            })
+        } else {
+            ProceduralMap::preset(spec)
+        }
+    }
+}
+
+/// `--devices` (at least 1, checked by its parser), or the backend's default.
+pub fn device_count(devices: Option<usize>, backend: Backend) -> Result<usize> {
+    Ok(devices.unwrap_or_else(|| rtr::train::shards::default_devices(backend)))
+}
+
+/// The files an `--out` names: itself if it has an extension, else PREFIX.png and PREFIX.svg.
+pub fn targets(out: &Path) -> Vec<PathBuf> {
+    match out.extension() {
+        Some(_) => vec![out.to_path_buf()],
+        None => output_paths(out).to_vec(),
+    }
+}

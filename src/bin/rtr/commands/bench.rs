@@ -1,0 +1,126 @@
+//! `rtr bench`: simulator, network and training throughput benchmarks, printed as JSON.
+
+use std::sync::Arc;
+
+use clap::{Args, Subcommand};
+
+use rtr::backend::Backend;
+use rtr::data::a9;
+use rtr::map::Map;
+use rtr::model::ModelConfig;
+use rtr::{Error, Result};
+
+use super::args::{DataArgs, count, device_count};
+
+#[derive(Subcommand)]
+pub enum BenchCommand {
+    /// Closed-loop simulator: non-neural agent-steps/s (B=64 x N=50) and rollout gradient time
+    /// (T=10, B=32 x N=20) on the A9 map.
+    Sim(BenchArgs),
+    /// Policy + value networks at the paper's size (hidden 128): forward and forward+backward
+    /// time and peak memory for B=32 scenes x N=32 agents, H=5, on the A9 lane graph.
+    Model(BenchArgs),
+    /// Training throughput: one closed-loop IL step (scenes/s) and one factorized-PPO
+    /// iteration (agent-steps/s collected and updated) at the paper's batch sizes.
+    Train(TrainBenchArgs),
+}
+
+#[derive(Args)]
+pub struct TrainBenchArgs {
+    #[command(flatten)]
+    data: DataArgs,
+    #[arg(long, default_value = "ndarray")]
+    backend: Backend,
+    /// The small network of the tests instead of the paper's (hidden 128).
+    #[arg(long)]
+    small: bool,
+    #[arg(long, default_value_t = 32, value_parser = count(1, 4096))]
+    il_minibatch: usize,
+    #[arg(long, default_value_t = 192, value_parser = count(1, 4096))]
+    ppo_batch: usize,
+    #[arg(long, default_value_t = 32, value_parser = count(1, 4096))]
+    ppo_minibatch: usize,
+    /// Worker devices (data parallel); default one per core (one on wgpu).
+    #[arg(long, value_parser = count(1, 256))]
+    devices: Option<usize>,
+    /// Print one JSON object (the only output format; accepted for symmetry).
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Args)]
+pub struct BenchArgs {
+    #[command(flatten)]
+    data: DataArgs,
+    /// ndarray, flex or wgpu (the latter two need their cargo features).
+    #[arg(long, default_value = "ndarray")]
+    backend: Backend,
+    /// Timed repetitions per measurement (the median is reported).
+    #[arg(long, default_value_t = 5, value_parser = count(1, 1000))]
+    repetitions: usize,
+    /// Worker devices the model benchmark splits its batch over; default one per core (one on
+    /// wgpu). The simulator benchmark has no network and ignores it.
+    #[arg(long, value_parser = count(1, 256))]
+    devices: Option<usize>,
+    /// Print one JSON object (the only output format; the flag is accepted for symmetry with
+    /// other commands).
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn run(command: BenchCommand) -> Result<()> {
+    let report = match command {
+        BenchCommand::Train(args) => {
+            let model = if args.small {
+                ModelConfig::small()
+            } else {
+                ModelConfig::default()
+            };
+            let devices = device_count(args.devices, args.backend)?;
+            rtr::train::bench::check_settings(
+                args.backend,
+                &model,
+                args.il_minibatch,
+                args.ppo_batch,
+                args.ppo_minibatch,
+                devices,
+            )?;
+            serde_json::to_value(rtr::train::bench::bench_training(
+                &args.data.load()?,
+                args.backend,
+                model,
+                args.il_minibatch,
+                args.ppo_batch,
+                args.ppo_minibatch,
+                devices,
+            )?)
+        }
+        BenchCommand::Sim(args) => {
+            args.backend.device(false)?;
+            let (map, repetitions) = bench_inputs(&args)?;
+            serde_json::to_value(rtr::sim::bench::run(map, args.backend, repetitions)?)
+        }
+        BenchCommand::Model(args) => {
+            args.backend.device(false)?;
+            let devices = device_count(args.devices, args.backend)?;
+            let (map, repetitions) = bench_inputs(&args)?;
+            serde_json::to_value(rtr::model::bench::run(
+                map,
+                args.backend,
+                devices,
+                repetitions,
+            )?)
+        }
+    }
+    .map_err(|e| Error::InvalidArgument(format!("cannot encode report: {e}")))?;
+    println!("{report}");
+    Ok(())
+}
+
+/// The A9 map and the repetition count (at least 1, checked by its parser) of a simulator or
+/// model benchmark.
+fn bench_inputs(args: &BenchArgs) -> Result<(Arc<Map>, usize)> {
+    let dir = args.data.data.clone().unwrap_or_else(a9::default_dir);
+    let map = Arc::new(Map::from_xodr_file(&dir.join(a9::STATIC_FILE))?);
+    Ok((map, args.repetitions))
+}

@@ -1,0 +1,126 @@
+//! `rtr eval`: evaluate trained policies on the nominal, long-tail, OOD and CommonRoad sets.
+
+use std::path::PathBuf;
+
+use clap::Args;
+
+use rtr::backend::Backend;
+use rtr::data::{SceneConfig, commonroad};
+use rtr::eval::study::{evaluate_entries, load_entries, write_study};
+use rtr::eval::{EvalConfig, EvalScenes, EvalSet, load_sets, markdown_table};
+use rtr::io::{OutputKind, check_output};
+use rtr::{Error, Result};
+
+use super::args::{DataArgs, count};
+
+#[derive(Args)]
+pub struct EvalArgs {
+    /// A finished run folder (runs/<name>, models/<method>), a checkpoints/iter-* folder or a
+    /// policy.bpk beside its run's config.toml. Repeat for more rows.
+    #[arg(long = "checkpoint")]
+    checkpoints: Vec<PathBuf>,
+    /// Also evaluate the IDM + lane-keeping reference driver (not learned).
+    #[arg(long)]
+    idm: bool,
+    /// Scene sets, comma-separated: nominal, longtail, ood.
+    #[arg(long, value_delimiter = ',', default_value = "nominal")]
+    set: Vec<String>,
+    /// Scenarios from `rtr scenarios generate` (its eval/ and ood/); default: draw the
+    /// default sets now (about a minute).
+    #[arg(long)]
+    scenarios: Option<PathBuf>,
+    /// CommonRoad scenario files (.xml, .xml.gz) or folders of them: their recorded scenes
+    /// become the `commonroad` set, next to the sets of --set. Repeatable.
+    #[arg(long = "commonroad")]
+    commonroad: Vec<PathBuf>,
+    /// Speed limit (m/s) of CommonRoad lanes whose file gives none (default: 130 km/h).
+    #[arg(long, requires = "commonroad")]
+    commonroad_speed_limit: Option<f64>,
+    /// Write results.json, table.md and the figures here.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Bootstrap resamples over scenes for the +- intervals (at least 100).
+    #[arg(long, default_value_t = 1000, value_parser = count(100, 1_000_000))]
+    resamples: usize,
+    /// Scenes per tensor batch.
+    #[arg(long, default_value_t = 16, value_parser = count(1, 4096))]
+    batch: usize,
+    #[arg(long, default_value_t = Backend::NdArray)]
+    backend: Backend,
+    #[command(flatten)]
+    data: DataArgs,
+}
+
+pub fn run(args: EvalArgs) -> Result<()> {
+    if args.checkpoints.is_empty() && !args.idm {
+        return Err(Error::InvalidArgument(
+            "nothing to evaluate: pass --checkpoint DIR (repeatable) and/or --idm".into(),
+        ));
+    }
+    if let Some(out) = &args.out {
+        check_output(out, OutputKind::Folder, "--out")?;
+    }
+    let mut sets = args
+        .set
+        .iter()
+        .map(|s| EvalSet::parse(s.trim()))
+        .collect::<Result<Vec<_>>>()?;
+    let device = args.backend.device(false)?;
+    let commonroad = commonroad_set(&args.commonroad, args.commonroad_speed_limit)?;
+    let entries = load_entries(&args.checkpoints, args.idm, &device)?;
+    let dataset = args.data.load()?;
+    sets.retain(|&s| s != EvalSet::CommonRoad || commonroad.is_none());
+    let mut scenes = load_sets(&dataset, args.scenarios.as_deref(), &sets)?;
+    let mut clip_summaries = Vec::new();
+    if let Some((set, summaries)) = commonroad {
+        sets.push(EvalSet::CommonRoad);
+        scenes.push(set);
+        clip_summaries = summaries;
+    }
+    let config = EvalConfig {
+        batch: args.batch,
+        resamples: args.resamples,
+        ..EvalConfig::default()
+    };
+    let progress = indicatif::ProgressBar::new(0).with_style(
+        indicatif::ProgressStyle::with_template(
+            "eval [{elapsed_precise}] {bar:30} {pos}/{len} {msg}",
+        )
+        .map_err(|e| Error::InvalidArgument(format!("progress template: {e}")))?,
+    );
+    let results = evaluate_entries(&entries, &scenes, &device, &config, &progress)?;
+    progress.finish_and_clear();
+    print!("{}", markdown_table(&results, &sets));
+    if let Some(out) = &args.out {
+        let mut written = write_study(out, &entries, &results, &scenes, &device)?;
+        if !clip_summaries.is_empty() {
+            let path = out.join("commonroad.json");
+            let text = serde_json::to_string_pretty(&clip_summaries)
+                .map_err(|e| Error::InvalidArgument(format!("cannot encode clips: {e}")))?;
+            rtr::io::atomic_write(&path, text.as_bytes())?;
+            written.push(path);
+        }
+        println!("wrote {} files to {}", written.len(), out.display());
+    }
+    Ok(())
+}
+
+/// The `commonroad` eval set from the files and folders of `--commonroad`, with one line per
+/// file on stderr saying what it gave; `None` without paths.
+fn commonroad_set(
+    paths: &[PathBuf],
+    speed_limit: Option<f64>,
+) -> Result<Option<(EvalScenes, Vec<commonroad::ClipSummary>)>> {
+    if paths.is_empty() {
+        return Ok(None);
+    }
+    let clips = commonroad::load_commonroad(paths, speed_limit)?;
+    let (scenes, summaries) = commonroad::commonroad_scenes(&clips, &SceneConfig::default())?;
+    eprint!("{}", commonroad::describe_clips(&summaries));
+    if scenes.is_empty() {
+        return Err(Error::InvalidArgument(
+            "the CommonRoad files yield no scene (each file's reason is printed above)".into(),
+        ));
+    }
+    Ok(Some((EvalScenes::commonroad(scenes), summaries)))
+}

@@ -1,0 +1,76 @@
+//! `rtr model`: configuration and parameter counts of the policy and value networks.
+
+use std::path::PathBuf;
+
+use clap::Subcommand;
+
+use rtr::backend::Backend;
+use rtr::model::{ModelConfig, PolicyNetwork, ValueNetwork};
+use rtr::{Error, Result};
+
+#[derive(Subcommand)]
+pub enum ModelCommand {
+    /// Configuration and parameter counts of the policy and value networks.
+    Info {
+        /// A model config (TOML); missing fields take the paper's defaults.
+        #[arg(long)]
+        config: Option<PathBuf>,
+        /// The small configuration of the tests and the quick example.
+        #[arg(long, conflicts_with = "config")]
+        small: bool,
+        /// Print one JSON object instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+pub fn run(command: ModelCommand) -> Result<()> {
+    let ModelCommand::Info {
+        config,
+        small,
+        json,
+    } = command;
+    let config = match (&config, small) {
+        (Some(path), _) => ModelConfig::from_toml_file(path)?,
+        (None, true) => ModelConfig::small(),
+        (None, false) => ModelConfig::default(),
+    };
+    // Parameter counting needs no gradients; the plain CPU device is always compiled in.
+    let device = Backend::NdArray.device(false)?;
+    let policy = PolicyNetwork::new(&config, &device).parameter_counts();
+    let value = ValueNetwork::new(&config, &device).parameter_counts();
+    if json {
+        let report = serde_json::json!({
+            "config": config,
+            "policy": policy,
+            "value": value,
+            "params": policy.total + value.total,
+        });
+        println!("{report:#}");
+        return Ok(());
+    }
+    let text = toml::to_string(&config)
+        .map_err(|e| Error::InvalidArgument(format!("cannot encode config: {e}")))?;
+    println!("# model config\n{text}");
+    println!("{:<22} {:>12} {:>12}", "parameters", "policy", "value");
+    let rows = [
+        (
+            "history encoder",
+            policy.history_encoder,
+            value.history_encoder,
+        ),
+        (
+            "lane-graph encoder",
+            policy.lane_graph_encoder,
+            value.lane_graph_encoder,
+        ),
+        ("interaction (GNN)", policy.interaction, value.interaction),
+        ("head (MLP)", policy.head, value.head),
+        ("total", policy.total, value.total),
+    ];
+    for (name, p, v) in rows {
+        println!("{name:<22} {p:>12} {v:>12}");
+    }
+    println!("policy + value: {}", policy.total + value.total);
+    Ok(())
+}

@@ -1,0 +1,106 @@
+//! `rtr sim2real`: identify and fit the physics the simulator leaves out of vehicle recordings.
+
+use std::path::PathBuf;
+
+use clap::Args;
+
+use rtr::io::{OutputKind, check_output};
+use rtr::sim2real::{Sim2RealOptions, a9::a9_recordings, identify, plots::write_plots};
+use rtr::{Error, Result};
+
+use super::args::{DataArgs, count};
+
+#[derive(Args)]
+pub struct Sim2RealArgs {
+    /// Recordings CSV: track_id,t,x,y,heading,speed,accel_cmd,steer_cmd[,wheelbase] (SI).
+    #[arg(long, required_unless_present = "a9", conflicts_with = "a9")]
+    recordings: Option<PathBuf>,
+    /// Use the shipped A9 drone recording instead (no commands recorded: they are inferred
+    /// from the motion, so only effects outside the actuators can be identified).
+    #[arg(long)]
+    a9: bool,
+    #[command(flatten)]
+    data: DataArgs,
+    /// Where to write the JSON report.
+    #[arg(long)]
+    report: PathBuf,
+    /// Folder for plots (regimes.svg, tracks.svg).
+    #[arg(long)]
+    plots: Option<PathBuf>,
+    /// Write the identified terms (TOML) for `rtr train --dynamics` or a run file's `dynamics`.
+    #[arg(long)]
+    save_dynamics: Option<PathBuf>,
+    /// Gradient-descent iterations per candidate.
+    #[arg(long, default_value_t = 120, value_parser = count(1, 100_000))]
+    iterations: usize,
+    /// Horizon of the fitting and held-out windows (s).
+    #[arg(long, default_value_t = 5.0)]
+    horizon: f64,
+    /// Seed of the train / held-out split.
+    #[arg(long, default_value_t = 2023)]
+    seed: u64,
+    /// Only the catalogue's named effects compete; the open-ended stage's equation is still
+    /// regressed and reported, but not kept.
+    #[arg(long)]
+    catalogue_only: bool,
+}
+
+pub fn run(args: Sim2RealArgs) -> Result<()> {
+    if !(args.horizon > 0.0 && args.horizon <= 60.0) {
+        return Err(Error::InvalidArgument(format!(
+            "--horizon {}: expected seconds in (0, 60]",
+            args.horizon
+        )));
+    }
+    check_output(&args.report, OutputKind::File, "--report")?;
+    if let Some(dir) = &args.plots {
+        check_output(dir, OutputKind::Folder, "--plots")?;
+    }
+    if let Some(path) = &args.save_dynamics {
+        check_output(path, OutputKind::File, "--save-dynamics")?;
+    }
+    let (recordings, commands_inferred) = match &args.recordings {
+        Some(path) => (rtr::data::Recordings::load(path)?, false),
+        None => (
+            a9_recordings(&args.data.load()?, 0.1, args.horizon + 2.0),
+            true,
+        ),
+    };
+    let mut options = Sim2RealOptions {
+        horizon_s: args.horizon,
+        seed: args.seed,
+        commands_inferred,
+        discover: !args.catalogue_only,
+        ..Default::default()
+    };
+    options.fit.iterations = args.iterations;
+    let progress = indicatif::ProgressBar::new_spinner();
+    progress.enable_steady_tick(std::time::Duration::from_millis(200));
+    let outcome = identify(&recordings, &options, &|stage: &str| {
+        progress.set_message(stage.to_string())
+    })?;
+    progress.finish_and_clear();
+    let report = &outcome.report;
+    for line in report.summary() {
+        println!("{line}");
+    }
+    let json = serde_json::to_string_pretty(report)
+        .map_err(|e| Error::InvalidArgument(format!("cannot encode the report: {e}")))?;
+    rtr::io::atomic_write(&args.report, json.as_bytes())?;
+    println!("report: {}", args.report.display());
+    if let Some(dir) = &args.plots {
+        let written = write_plots(dir, &outcome)?;
+        for path in written {
+            println!("plot: {}", path.display());
+        }
+    }
+    if let Some(path) = &args.save_dynamics {
+        report.dynamics().save(path)?;
+        println!(
+            "dynamics ({} terms): {}",
+            report.dynamics().terms.len(),
+            path.display()
+        );
+    }
+    Ok(())
+}

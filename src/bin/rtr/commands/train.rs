@@ -1,0 +1,85 @@
+//! `rtr train`: train a policy from a run file into a run folder.
+
+use std::path::PathBuf;
+
+use clap::Args;
+
+use rtr::io::{OutputKind, check_output};
+use rtr::{Error, Result};
+
+use super::args::DataArgs;
+
+#[derive(Args)]
+pub struct TrainArgs {
+    /// The run file (TOML).
+    #[arg(long)]
+    config: PathBuf,
+    /// Run folder; default: runs/<config file stem>.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Continue the run in OUT from its last checkpoint (same result as an uninterrupted run).
+    #[arg(long)]
+    resume: bool,
+    /// Physics terms from `rtr sim2real --save-dynamics`, replacing the run file's `dynamics`.
+    #[arg(long)]
+    dynamics: Option<PathBuf>,
+    /// Long-tail training scenarios from `rtr scenarios generate` (its train/), replacing the
+    /// run file's `data.longtail_dir` (saves drawing them at start).
+    #[arg(long)]
+    scenarios: Option<PathBuf>,
+    #[command(flatten)]
+    data: DataArgs,
+}
+
+pub fn run(args: TrainArgs) -> Result<()> {
+    let mut config = rtr::train::TrainConfig::from_toml_file(&args.config)?;
+    if let Some(path) = &args.dynamics {
+        config.dynamics = Some(path.clone());
+    }
+    if let Some(dir) = &args.scenarios {
+        config.data.longtail_dir = Some(dir.clone());
+        config.validate(&format!("{} with --scenarios", args.config.display()))?;
+    }
+    let out = args.out.clone().unwrap_or_else(|| {
+        let stem = args
+            .config
+            .file_stem()
+            .map_or("run".into(), |s| s.to_owned());
+        PathBuf::from("runs").join(stem)
+    });
+    check_output(&out, OutputKind::Folder, "--out")?;
+    rtr::train::checkpoint::resume_point(&out, args.resume)?;
+    let dataset = args.data.load()?;
+    let method = config.method.name();
+    let progress = indicatif::ProgressBar::new(0).with_style(
+        indicatif::ProgressStyle::with_template(
+            "{prefix} [{elapsed_precise}] {bar:30} {pos}/{len} iterations, eta {eta} {msg}",
+        )
+        .map_err(|e| Error::InvalidArgument(format!("progress template: {e}")))?,
+    );
+    progress.set_prefix(method.to_string());
+    let summary = rtr::train::session::train(config, &dataset, &out, args.resume, &progress)?;
+    progress.finish();
+    println!(
+        "{method}: {} iterations, {} optimizer steps; checkpoint {}; curves {}",
+        summary.iterations,
+        summary.updates,
+        summary.checkpoint.display(),
+        out.join("curves.csv").display()
+    );
+    if let Some(last) = summary.last {
+        println!(
+            "last step: loss {:.5} (IL {:.5}, BC {:.5}, PPO policy {:.5}, value {:.5}, KL {:.5}); \
+             rollout collisions {:.1}%, off-road {:.1}%",
+            last.loss,
+            last.il_loss,
+            last.bc_loss,
+            last.policy_loss,
+            last.value_loss,
+            last.kl,
+            last.collision_pct,
+            last.offroad_pct
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,113 @@
+//! The `rtr` command-line tool. Thin: parses arguments, calls the library, prints.
+
+mod commands;
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+#[derive(Parser)]
+#[command(
+    name = "rtr",
+    version,
+    about = "Learning realistic traffic agents in closed loop"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// The nominal dataset (real A9 recording).
+    Data {
+        #[command(subcommand)]
+        command: commands::data::DataCommand,
+    },
+    /// Draw a scene of the nominal dataset (road, lane marks, boxes, history, logged future).
+    Render(commands::render::RenderArgs),
+    /// Throughput benchmarks, printed as JSON.
+    Bench {
+        #[command(subcommand)]
+        command: commands::bench::BenchCommand,
+    },
+    /// OpenDRIVE and procedural maps: describe, draw, export.
+    Map {
+        #[command(subcommand)]
+        command: commands::map::MapCommand,
+    },
+    /// The policy and value networks.
+    Model {
+        #[command(subcommand)]
+        command: commands::model::ModelCommand,
+    },
+    /// Long-tail scenarios: logical families, concrete sets.
+    Scenarios {
+        #[command(subcommand)]
+        command: commands::scenarios::ScenariosCommand,
+    },
+    /// Train a policy from a run file (experiments/*/*.toml): BC, IL, RL, RL-Shaped, BC+RL,
+    /// RTR, KL-L or KL-R. Writes OUT/curves.csv, OUT/config.toml and OUT/checkpoints/.
+    Train(commands::train::TrainArgs),
+    /// Evaluate trained policies on the nominal (real A9 test), long-tail and OOD sets: prints
+    /// the paper's table (Markdown, one row per checkpoint) and writes JSON and figures.
+    Eval(commands::eval::EvalArgs),
+    /// The lambda x alpha study: train RTR at every point from one base run file, then
+    /// evaluate each (paper table "Balancing realism and infraction avoidance").
+    Sweep(commands::sweep::SweepArgs),
+    /// The downstream study (paper section 4.2): each policy simulates the A9 training split,
+    /// a trajectory predictor is trained on each simulated dataset and scored on the real test
+    /// split (minFDE, minCTE over modes; mean +- std over seeds).
+    Downstream(commands::downstream::DownstreamArgs),
+    /// List the nominal A9 training scenes a trained policy commits an infraction on (the
+    /// paper's "Curated" scenario set): a scene list for a run file's `data.curated`.
+    Curate(commands::curate::CurateArgs),
+    /// Sim-to-real: locate where the simulator and vehicle recordings differ, name the physics
+    /// the bicycle model left out, fit it and show held-out error before and after.
+    Sim2real(commands::sim2real::Sim2RealArgs),
+    /// Vehicle recordings for sim-to-real.
+    Recordings {
+        #[command(subcommand)]
+        command: commands::recordings::RecordingsCommand,
+    },
+}
+
+fn main() -> ExitCode {
+    rtr::allocator::tune_for_tensors();
+    match run(Cli::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            let mut shown = e.to_string();
+            let mut source = std::error::Error::source(&e);
+            while let Some(cause) = source {
+                // Variants that wrap a cause already print it in their own message.
+                let text = cause.to_string();
+                if !shown.contains(&text) {
+                    eprintln!("  caused by: {text}");
+                    shown.push_str(&text);
+                }
+                source = cause.source();
+            }
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(cli: Cli) -> rtr::Result<()> {
+    match cli.command {
+        Command::Data { command } => commands::data::run(command),
+        Command::Render(args) => commands::render::run(args),
+        Command::Bench { command } => commands::bench::run(command),
+        Command::Map { command } => commands::map::run(command),
+        Command::Model { command } => commands::model::run(command),
+        Command::Scenarios { command } => commands::scenarios::run(command),
+        Command::Train(args) => commands::train::run(args),
+        Command::Eval(args) => commands::eval::run(args),
+        Command::Sweep(args) => commands::sweep::run(args),
+        Command::Downstream(args) => commands::downstream::run(args),
+        Command::Curate(args) => commands::curate::run(args),
+        Command::Sim2real(args) => commands::sim2real::run(args),
+        Command::Recordings { command } => commands::recordings::run(command),
+    }
+}
