@@ -3,9 +3,12 @@
 //!
 //! Max aggregation is a dense masked max over the neighbour axis, not burn's scatter with
 //! `IndexingUpdateOp::Max`: the scatter's gradient is wrong when several edges reach the same
-//! node (every loser gets gradient too, see `shared/notes/burn-0.22.md`). The max is a tree of
-//! `max_pair` (an elementwise select) rather than `max_dim`, which on burn-ndarray took ~50 ms
-//! for a `[32, 162, 2, 128]` tensor against ~3 ms for the tree; both route the gradient to the
+//! node (every loser gets gradient too, see `shared/notes/burn-0.22.md`). Which dense max is
+//! fastest depends on the backend and the neighbour count (forward + backward, measured on
+//! `[16, R, K, 128]` messages, see `max_by_tree`): burn-flex's `max_dim` is as fast or faster at
+//! every width; burn-ndarray's `max_dim` loses badly on the narrow lane-graph neighbour lists
+//! (K <= 8) and wins on the dense agent-agent ones (K = 32), so there a tree of elementwise
+//! `max_pair`s is used below [`NDARRAY_TREE_BELOW`] neighbours. Both route the gradient to the
 //! single winner, as `tests/gradients.rs` checks against finite differences.
 
 use burn::prelude::*;
@@ -30,12 +33,38 @@ pub fn gather_neighbours(nodes: Tensor<3>, index: Tensor<3, Int>) -> Tensor<4> {
         .reshape([b, r, k, c])
 }
 
+/// Neighbour counts below which burn-ndarray takes the max as a tree of `max_pair`s.
+const NDARRAY_TREE_BELOW: usize = 16;
+
 /// Max over the neighbour axis (dim 2) of `messages` (`[B, R, K, C]`) where `mask`
 /// (`[B, R, K]`) is true; rows with no neighbour get 0.
 pub fn masked_max(messages: Tensor<4>, mask: Tensor<3, Bool>) -> Tensor<3> {
-    let [b, r, mut k, c] = messages.dims();
+    let [b, r, k, c] = messages.dims();
     let any = mask.clone().any_dim(2).reshape([b, r, 1]);
-    let mut x = messages.mask_fill(mask.bool_not().unsqueeze_dim::<4>(3), MASKED);
+    let filled = messages.mask_fill(mask.bool_not().unsqueeze_dim::<4>(3), MASKED);
+    let max = if k < NDARRAY_TREE_BELOW && on_ndarray(&filled.device()) {
+        max_by_tree(filled)
+    } else {
+        filled.max_dim(2)
+    };
+    max.reshape([b, r, c]).mask_fill(any.bool_not(), 0.0)
+}
+
+/// Whether `device` (autodiff or not) runs on burn-ndarray.
+fn on_ndarray(device: &Device) -> bool {
+    #[allow(deprecated)] // the device burn-ndarray has (one CPU device)
+    let ndarray = Device::ndarray();
+    device.clone().inner() == ndarray
+}
+
+/// Max over dim 2 as a tree of elementwise maxima: `[B, R, K, C]` -> `[B, R, 1, C]`.
+///
+/// Forward + backward at C = 128, `[B, R, K]` = `[16, 162, 4]` / `[16, 32, 8]` /
+/// `[16, 32, 32]`, in ms (one quiet run on the 2-core VM): burn-ndarray tree 11.2 / 3.4 / 39.0
+/// against `max_dim` 48.3 / 10.7 / 22.8; burn-flex tree 10.3 / 3.7 / 14.7 against `max_dim`
+/// 9.9 / 2.4 / 14.7.
+fn max_by_tree(mut x: Tensor<4>) -> Tensor<4> {
+    let mut k = x.dims()[2];
     // Halve the neighbour axis until one entry is left; an odd last entry is carried along.
     while k > 1 {
         let half = k / 2;
@@ -50,7 +79,7 @@ pub fn masked_max(messages: Tensor<4>, mask: Tensor<3, Bool>) -> Tensor<3> {
         };
         k = half + k % 2;
     }
-    x.reshape([b, r, c]).mask_fill(any.bool_not(), 0.0)
+    x
 }
 
 #[cfg(test)]
