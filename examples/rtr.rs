@@ -30,8 +30,8 @@ struct Args {
     /// small one (experiments/main/small/*.toml).
     #[arg(long)]
     full: bool,
-    /// Device backend for training and evaluation.
-    #[arg(long, default_value = "ndarray")]
+    /// Device backend for training and evaluation (flex in the default build).
+    #[arg(long, default_value_t = Backend::cpu_default())]
     backend: Backend,
     /// Skip training; evaluate the shipped models/ only.
     #[arg(long)]

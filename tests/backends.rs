@@ -1,7 +1,7 @@
-//! The backend swap: the same closed-loop rollout, imitation loss and gradient on NdArray and
-//! on a second backend must agree. Needs that backend compiled in:
-//! `cargo test --features flex --test backends` (or `--features wgpu`; without a GPU, wgpu
-//! runs on Mesa's software Vulkan: `apt-get install mesa-vulkan-drivers libvulkan1`).
+//! The backend swap: the same closed-loop rollout, imitation loss and gradient, and the same
+//! policy network output and gradient, on NdArray and on every other backend compiled in:
+//! Flex (the default features) and Wgpu (`--features wgpu`; without a GPU it runs on Mesa's
+//! software Vulkan: `apt-get install mesa-vulkan-drivers libvulkan1`). `.ci/backends` runs both.
 #![cfg(any(feature = "flex", feature = "wgpu"))]
 
 mod common;
@@ -9,6 +9,7 @@ mod common;
 use burn::prelude::*;
 use burn::tensor::TensorData;
 use rtr::backend::Backend;
+use rtr::model::{AgentInput, LaneInput, ModelConfig, PolicyNetwork};
 use rtr::scene::{Scene, SceneBatch};
 use rtr::sim::bench::agent_features;
 use rtr::sim::{
@@ -55,13 +56,7 @@ fn run(backend: Backend, scenes: &[&Scene]) -> (f64, Vec<f64>, Vec<f64>) {
     (to_vec(loss.into_data())[0], grad, to_vec(last))
 }
 
-#[test]
-fn second_backend_matches_ndarray() {
-    let other = if cfg!(feature = "flex") {
-        Backend::Flex
-    } else {
-        Backend::Wgpu
-    };
+fn rollout_matches_ndarray(other: Backend) {
     let split = common::a9_scenes();
     let scenes: Vec<&Scene> = split.test.iter().step_by(25).take(4).collect();
     let (loss_a, grad_a, pos_a) = run(Backend::NdArray, &scenes);
@@ -75,4 +70,76 @@ fn second_backend_matches_ndarray() {
     for (a, b) in pos_a.iter().zip(&pos_b) {
         assert!((a - b).abs() < 1e-2, "position {a} vs {b}");
     }
+}
+
+/// The policy's action means on real scenes and the gradient of their sum with respect to the
+/// agents' poses (through the relative-pose edges and every max aggregation, whose fastest form
+/// differs by backend: `rtr::model::aggregate`).
+fn policy_output_and_pose_gradient(
+    backend: Backend,
+    policy: &PolicyNetwork,
+    scenes: &[&Scene],
+) -> (Vec<f64>, Vec<f64>) {
+    let device = backend.device(true).expect("backend compiled in");
+    let policy = policy.clone().fork(&device);
+    let batch = SceneBatch::from_scenes(scenes, &device).expect("batch");
+    let config = policy.config().clone();
+    let frames = rtr::sim::logged_frames(&batch, batch.history_steps);
+    let lanes = LaneInput::from_batch(&batch, &config);
+    let poses = frames[frames.len() - 1].poses.clone().require_grad();
+    let mut frames = frames;
+    let last = frames.len() - 1;
+    frames[last].poses = poses.clone();
+    let agents = AgentInput::from_frames(&batch, &frames, &config);
+    let mean = policy
+        .forward(&agents, &lanes, &policy.encode_lanes(&lanes))
+        .mean;
+    let grads = mean.clone().sum().backward();
+    let to_vec = |d: TensorData| d.convert::<f64>().try_into_vec::<f64>().expect("floats");
+    (
+        to_vec(mean.into_data()),
+        to_vec(poses.grad(&grads).expect("pose gradient").into_data()),
+    )
+}
+
+fn policy_matches_ndarray(other: Backend) {
+    let split = common::a9_scenes();
+    let scenes: Vec<&Scene> = split.test.iter().step_by(20).take(3).collect();
+    let config = ModelConfig::small();
+    let policy = PolicyNetwork::new(&config, &Backend::NdArray.device(true).expect("ndarray"));
+    let (mean_a, grad_a) = policy_output_and_pose_gradient(Backend::NdArray, &policy, &scenes);
+    let (mean_b, grad_b) = policy_output_and_pose_gradient(other, &policy, &scenes);
+    let close = |a: &[f64], b: &[f64], what: &str| {
+        let scale = a.iter().fold(0f64, |m, v| m.max(v.abs())).max(1e-6);
+        assert!(scale > 1e-4, "{what} is all zero");
+        for (x, y) in a.iter().zip(b) {
+            assert!((x - y).abs() <= 1e-3 * scale, "{what}: {x} vs {y}");
+        }
+    };
+    close(&mean_a, &mean_b, "action mean");
+    close(&grad_a, &grad_b, "pose gradient");
+}
+
+#[cfg(feature = "flex")]
+#[test]
+fn flex_rollout_matches_ndarray() {
+    rollout_matches_ndarray(Backend::Flex);
+}
+
+#[cfg(feature = "flex")]
+#[test]
+fn flex_policy_network_matches_ndarray() {
+    policy_matches_ndarray(Backend::Flex);
+}
+
+#[cfg(feature = "wgpu")]
+#[test]
+fn wgpu_rollout_matches_ndarray() {
+    rollout_matches_ndarray(Backend::Wgpu);
+}
+
+#[cfg(feature = "wgpu")]
+#[test]
+fn wgpu_policy_network_matches_ndarray() {
+    policy_matches_ndarray(Backend::Wgpu);
 }

@@ -377,7 +377,7 @@ pub struct RunConfig {
 impl Default for RunConfig {
     fn default() -> Self {
         Self {
-            backend: Backend::NdArray,
+            backend: Backend::cpu_default(),
             devices: None,
             checkpoint_every: 1,
             max_iterations: None,
@@ -394,11 +394,14 @@ impl RunConfig {
 }
 
 impl TrainConfig {
-    /// What identifies a run for `--resume`: the config as TOML without `run.devices` (how
-    /// many workers computed a step changes no result).
+    /// What identifies a run for `--resume`: the config as TOML without `run.devices` and
+    /// `run.backend` (how many workers computed a step, and on which backend, changes results
+    /// by float rounding only: `tests/backends.rs`), so a run started on NdArray resumes on
+    /// Flex.
     pub fn identity_toml(&self) -> Result<String> {
         let mut identity = self.clone();
         identity.run.devices = None;
+        identity.run.backend = Backend::NdArray;
         toml::to_string(&identity)
             .map_err(|e| Error::InvalidArgument(format!("config does not serialise: {e}")))
     }
@@ -620,6 +623,19 @@ mod tests {
         let lr = |e| c.optimizer.learning_rate_at(e);
         assert_eq!(lr(2), 1e-5);
         assert!((lr(3) - 2e-6).abs() < 1e-18 && (lr(9) - 8e-8).abs() < 1e-18);
+    }
+
+    /// A run started on one backend or worker count resumes on another (results differ by
+    /// float rounding only); anything that changes what is computed still counts.
+    #[test]
+    fn resume_identity_ignores_backend_and_workers_only() {
+        let parse = |text: &str| TrainConfig::from_toml_str(text, "run.toml").expect("parses");
+        let base = parse("method = \"IL\"\n[run]\nbackend = \"ndarray\"");
+        let flex = parse("method = \"IL\"\n[run]\nbackend = \"flex\"\ndevices = 3");
+        let other = parse("method = \"IL\"\nseed = 7\n[run]\nbackend = \"ndarray\"");
+        let identity = |c: &TrainConfig| c.identity_toml().expect("serialises");
+        assert_eq!(identity(&base), identity(&flex));
+        assert_ne!(identity(&base), identity(&other));
     }
 
     #[test]

@@ -29,7 +29,8 @@ pub enum BenchCommand {
 pub struct TrainBenchArgs {
     #[command(flatten)]
     data: DataArgs,
-    #[arg(long, default_value = "ndarray")]
+    /// flex (the default build's CPU backend), ndarray, or wgpu (cargo feature `wgpu`).
+    #[arg(long, default_value_t = Backend::cpu_default())]
     backend: Backend,
     /// The small network of the tests instead of the paper's (hidden 128).
     #[arg(long)]
@@ -52,8 +53,8 @@ pub struct TrainBenchArgs {
 pub struct BenchArgs {
     #[command(flatten)]
     data: DataArgs,
-    /// ndarray, flex or wgpu (the latter two need their cargo features).
-    #[arg(long, default_value = "ndarray")]
+    /// flex (the default build's CPU backend), ndarray, or wgpu (cargo feature `wgpu`).
+    #[arg(long, default_value_t = Backend::cpu_default())]
     backend: Backend,
     /// Timed repetitions per measurement (the median is reported).
     #[arg(long, default_value_t = 5, value_parser = count(1, 1000))]

@@ -32,7 +32,7 @@ pub struct DownstreamArgs {
     /// Write results.json and table.md here.
     #[arg(long)]
     out: Option<PathBuf>,
-    #[arg(long, default_value_t = Backend::NdArray)]
+    #[arg(long, default_value_t = Backend::cpu_default())]
     backend: Backend,
     #[command(flatten)]
     data: DataArgs,

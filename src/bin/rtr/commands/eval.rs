@@ -45,7 +45,7 @@ pub struct EvalArgs {
     /// Scenes per tensor batch.
     #[arg(long, default_value_t = 16, value_parser = count(1, 4096))]
     batch: usize,
-    #[arg(long, default_value_t = Backend::NdArray)]
+    #[arg(long, default_value_t = Backend::cpu_default())]
     backend: Backend,
     #[command(flatten)]
     data: DataArgs,
