@@ -9,12 +9,13 @@ mod common;
 use burn::prelude::*;
 use burn::tensor::TensorData;
 use rtr::backend::Backend;
-use rtr::model::{AgentInput, LaneInput, ModelConfig, PolicyNetwork};
+use rtr::model::{AgentInput, LaneInput, ModelConfig};
 use rtr::scene::{Scene, SceneBatch};
 use rtr::sim::bench::agent_features;
 use rtr::sim::{
     Controls, Dynamics, MapCaches, Observation, RolloutConfig, imitation_loss, rollout,
 };
+use rtr::train::load_policy;
 
 /// Loss, gradient of the first weight matrix, and final positions, on `backend`.
 fn run(backend: Backend, scenes: &[&Scene]) -> (f64, Vec<f64>, Vec<f64>) {
@@ -75,20 +76,19 @@ fn rollout_matches_ndarray(other: Backend) {
 /// The policy's action means on real scenes and the gradient of their sum with respect to the
 /// agents' poses (through the relative-pose edges and every max aggregation, whose fastest form
 /// differs by backend: `rtr::model::aggregate`).
-fn policy_output_and_pose_gradient(
-    backend: Backend,
-    policy: &PolicyNetwork,
-    scenes: &[&Scene],
-) -> (Vec<f64>, Vec<f64>) {
+fn policy_output_and_pose_gradient(backend: Backend, scenes: &[&Scene]) -> (Vec<f64>, Vec<f64>) {
     let device = backend.device(true).expect("backend compiled in");
-    let policy = policy.clone().fork(&device);
+    // The shipped small IL model (ModelConfig::small), loaded on each backend as `rtr eval`
+    // loads a checkpoint.
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models/il/policy.bpk");
+    let policy = load_policy(&path, &ModelConfig::small(), &device).expect("models/il loads");
     let batch = SceneBatch::from_scenes(scenes, &device).expect("batch");
     let config = policy.config().clone();
-    let frames = rtr::sim::logged_frames(&batch, batch.history_steps);
     let lanes = LaneInput::from_batch(&batch, &config);
-    let poses = frames[frames.len() - 1].poses.clone().require_grad();
-    let mut frames = frames;
+    // The current poses as a leaf, so the gradient reaches them through every edge.
+    let mut frames = rtr::sim::logged_frames(&batch, batch.history_steps);
     let last = frames.len() - 1;
+    let poses = frames[last].poses.clone().require_grad();
     frames[last].poses = poses.clone();
     let agents = AgentInput::from_frames(&batch, &frames, &config);
     let mean = policy
@@ -105,10 +105,8 @@ fn policy_output_and_pose_gradient(
 fn policy_matches_ndarray(other: Backend) {
     let split = common::a9_scenes();
     let scenes: Vec<&Scene> = split.test.iter().step_by(20).take(3).collect();
-    let config = ModelConfig::small();
-    let policy = PolicyNetwork::new(&config, &Backend::NdArray.device(true).expect("ndarray"));
-    let (mean_a, grad_a) = policy_output_and_pose_gradient(Backend::NdArray, &policy, &scenes);
-    let (mean_b, grad_b) = policy_output_and_pose_gradient(other, &policy, &scenes);
+    let (mean_a, grad_a) = policy_output_and_pose_gradient(Backend::NdArray, &scenes);
+    let (mean_b, grad_b) = policy_output_and_pose_gradient(other, &scenes);
     let close = |a: &[f64], b: &[f64], what: &str| {
         let scale = a.iter().fold(0f64, |m, v| m.max(v.abs())).max(1e-6);
         assert!(scale > 1e-4, "{what} is all zero");

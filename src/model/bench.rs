@@ -116,18 +116,12 @@ fn shards(
         .collect()
 }
 
-/// Times every shard's run, in parallel on scoped threads when there are several.
+/// Times every shard's run, in parallel (rayon tasks, as the trainer runs them) when there
+/// are several.
 fn timed(repetitions: usize, shards: &[Shard], backward: bool) -> Result<f64> {
+    use rayon::prelude::*;
     median_seconds(repetitions, &mut || {
-        if let [only] = shards {
-            only.run(backward);
-        } else {
-            std::thread::scope(|scope| {
-                for shard in shards {
-                    scope.spawn(move || shard.run(backward));
-                }
-            });
-        }
+        shards.par_iter().for_each(|shard| shard.run(backward));
         Ok(())
     })
 }

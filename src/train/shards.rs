@@ -9,6 +9,8 @@
 //! action noise), so sampled actions and losses do not depend on how scenes are grouped.
 
 use super::sources::Part;
+use rayon::prelude::*;
+
 use crate::error::{Error, Result};
 use crate::scene::Scene;
 use crate::sim::MapCaches;
@@ -90,7 +92,11 @@ pub fn plan<'a>(parts: Vec<Part<'a>>, devices: usize, max_scenes: usize) -> Vec<
     out
 }
 
-/// Runs `f` once per (work item, cache), on scoped threads when there are several.
+/// Runs `f` once per (work item, cache), in parallel when there are several.
+///
+/// The workers are rayon tasks, not plain threads: Flex parallelises its own ops with rayon, and
+/// from inside the pool those nested splits are work-stolen by the other worker's thread when
+/// it is idle instead of being injected into the pool from outside at every op.
 pub fn per_device<W: Send, T: Send>(
     work: Vec<W>,
     caches: &mut [MapCaches],
@@ -100,25 +106,14 @@ pub fn per_device<W: Send, T: Send>(
         let w = work.into_iter().next().expect("one work item");
         return Ok(vec![f(0, w, &mut caches[0])?]);
     }
-    std::thread::scope(|scope| {
-        let handles: Vec<_> = work
-            .into_iter()
-            .zip(caches.iter_mut())
-            .enumerate()
-            .map(|(k, (w, cache))| {
-                let f = &f;
-                scope.spawn(move || f(k, w, cache))
-            })
-            .collect();
-        handles
-            .into_iter()
-            .map(|h| {
-                h.join().unwrap_or_else(|_| {
-                    Err(Error::InvalidArgument("a device worker panicked".into()))
-                })
-            })
-            .collect()
-    })
+    work.into_par_iter()
+        .zip(caches.par_iter_mut())
+        .enumerate()
+        .map(|(k, (w, cache))| {
+            std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| f(k, w, cache)))
+                .unwrap_or_else(|_| Err(Error::InvalidArgument("a device worker panicked".into())))
+        })
+        .collect()
 }
 
 /// Worker threads for data parallelism when a run names none: one per core the process may
