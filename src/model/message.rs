@@ -5,10 +5,10 @@
 //! messages are conditioned on relative geometry (GoRela). The relu is applied after the max
 //! (`max_j relu(x_j) = relu(max_j x_j)`, relu being monotone), on `[B, R, C]` instead of every
 //! edge's `[B, R, K, C]`: the same output and gradient for one full-size op fewer forward and
-//! backward. A receiver term inside the relu
-//! would be redundant: relu and max are monotone, so `max_j relu(a_j + c) = relu(max_j a_j + c)`,
-//! and the receiver enters through [`NodeUpdate`] instead. Projecting the senders once per node
-//! (not once per edge) keeps the per-edge cost to one small matmul of the pose features.
+//! backward. A receiver term inside the relu would be redundant for the same reason
+//! (`max_j relu(a_j + c) = relu(max_j a_j + c)`), so the receiver enters through [`NodeUpdate`]
+//! instead. Projecting the senders once per node (not once per edge) keeps the per-edge cost to
+//! one small matmul of the pose features.
 //!
 //! [`NodeUpdate`]: LaneGCN's fusion, `h' = relu(h + LN(W_o relu(LN(W_self h + sum of messages))))`.
 
