@@ -7,7 +7,7 @@
 mod common;
 
 use burn::prelude::*;
-use burn::tensor::TensorData;
+use burn::tensor::{Bool, Int, TensorData};
 use rtr::backend::Backend;
 use rtr::model::{AgentInput, LaneInput, ModelConfig};
 use rtr::scene::{Scene, SceneBatch};
@@ -140,4 +140,47 @@ fn wgpu_rollout_matches_ndarray() {
 #[test]
 fn wgpu_policy_network_matches_ndarray() {
     policy_matches_ndarray(Backend::Wgpu);
+}
+
+/// Max aggregation output and the gradient reaching the senders, on `backend`: `k` neighbours
+/// per receiver, some masked out, one receiver with none (which outputs 0 and gets no gradient).
+fn max_aggregation(backend: Backend, k: usize) -> (Vec<f64>, Vec<f64>) {
+    use rtr::model::aggregate::{gather_neighbours, masked_max};
+    let device = backend.device(true).expect("backend compiled in");
+    let (b, m, r, c) = (2, 2 * k + 1, 5, 6);
+    let nodes: Vec<f32> = (0..b * m * c)
+        .map(|i| ((i as f32) * 2.3 + 0.4).sin())
+        .collect();
+    let index: Vec<i64> = (0..b * r * k).map(|i| ((i * 7 + 3) % m) as i64).collect();
+    let mask: Vec<bool> = (0..b * r * k).map(|i| i % 5 != 2 && i / k != 3).collect();
+    let weights: Vec<f32> = (0..b * r * c).map(|i| ((i as f32) * 1.3).cos()).collect();
+    let nodes = Tensor::<3>::from_data(TensorData::new(nodes, [b, m, c]), &device).require_grad();
+    let index = Tensor::<3, Int>::from_data(TensorData::new(index, [b, r, k]), &device);
+    let mask = Tensor::<3, Bool>::from_data(TensorData::new(mask, [b, r, k]), &device);
+    let weights = Tensor::<3>::from_data(TensorData::new(weights, [b, r, c]), &device);
+    let messages = gather_neighbours(nodes.clone(), index)
+        .tanh()
+        .mul_scalar(2.0);
+    let out = masked_max(messages, mask);
+    let grads = (out.clone() * weights).sum().backward();
+    let to_vec = |d: TensorData| d.convert::<f64>().try_into_vec::<f64>().expect("floats");
+    (
+        to_vec(out.into_data()),
+        to_vec(nodes.grad(&grads).expect("gradient").into_data()),
+    )
+}
+
+/// Flex takes the max with its own fused kernel and backward (`rtr::model::fused_max`); NdArray
+/// composes burn ops, checked against finite differences in `tests/gradients.rs`.
+#[cfg(feature = "flex")]
+#[test]
+fn flex_fused_max_aggregation_matches_ndarray() {
+    for k in [1, 3, 17] {
+        let (out_a, grad_a) = max_aggregation(Backend::NdArray, k);
+        let (out_b, grad_b) = max_aggregation(Backend::Flex, k);
+        assert!(out_a.iter().any(|v| *v != 0.0) && grad_a.iter().any(|g| *g != 0.0));
+        for (x, y) in out_a.iter().zip(&out_b).chain(grad_a.iter().zip(&grad_b)) {
+            assert!((x - y).abs() <= 1e-6, "{k} neighbours: {x} vs {y}");
+        }
+    }
 }

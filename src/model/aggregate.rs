@@ -5,11 +5,12 @@
 //! `IndexingUpdateOp::Max`: the scatter's gradient is wrong when several edges reach the same
 //! node (every loser gets gradient too, see `shared/notes/burn-0.22.md`). Which dense max is
 //! fastest depends on the backend and the neighbour count (forward + backward, measured on
-//! `[16, R, K, 128]` messages, see `max_by_tree`): burn-flex's `max_dim` is as fast or faster at
-//! every width; burn-ndarray's `max_dim` loses badly on the narrow lane-graph neighbour lists
-//! (K <= 8) and wins on the dense agent-agent ones (K = 32), so there a tree of elementwise
-//! `max_pair`s is used below [`NDARRAY_TREE_BELOW`] neighbours. Both route the gradient to the
-//! single winner, as `tests/gradients.rs` checks against finite differences.
+//! `[16, R, K, 128]` messages, see `max_by_tree`). On burn-flex, the default, a fused kernel with
+//! its own backward (`fused_max`, f32) beats every composition of burn ops. burn-ndarray's
+//! `max_dim` loses badly on the narrow lane-graph neighbour lists (K <= 8) and wins on the dense
+//! agent-agent ones (K = 32), so there a tree of elementwise `max_pair`s is used below
+//! [`NDARRAY_TREE_BELOW`] neighbours. All route the gradient to the single winner, as
+//! `tests/gradients.rs` (NdArray) and `tests/backends.rs` (Flex) check.
 
 use burn::prelude::*;
 use burn::tensor::{Bool, Int};
@@ -39,6 +40,10 @@ const NDARRAY_TREE_BELOW: usize = 16;
 /// Max over the neighbour axis (dim 2) of `messages` (`[B, R, K, C]`) where `mask`
 /// (`[B, R, K]`) is true; rows with no neighbour get 0.
 pub fn masked_max(messages: Tensor<4>, mask: Tensor<3, Bool>) -> Tensor<3> {
+    #[cfg(feature = "flex")]
+    if on_flex(&messages.device()) && messages.dtype() == burn::tensor::DType::F32 {
+        return super::fused_max::masked_max(messages, mask);
+    }
     let [b, r, k, c] = messages.dims();
     let any = mask.clone().any_dim(2).reshape([b, r, 1]);
     let filled = messages.mask_fill(mask.bool_not().unsqueeze_dim::<4>(3), MASKED);
@@ -55,6 +60,12 @@ fn on_ndarray(device: &Device) -> bool {
     #[allow(deprecated)] // the device burn-ndarray has (one CPU device)
     let ndarray = Device::ndarray();
     device.clone().inner() == ndarray
+}
+
+/// Whether `device` (autodiff or not) runs on burn-flex.
+#[cfg(feature = "flex")]
+fn on_flex(device: &Device) -> bool {
+    device.clone().inner() == Device::flex()
 }
 
 /// Max over dim 2 as a tree of elementwise maxima: `[B, R, K, C]` -> `[B, R, 1, C]`.

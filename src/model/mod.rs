@@ -15,6 +15,8 @@ pub mod aggregate;
 pub mod bench;
 pub mod config;
 pub mod distribution;
+#[cfg(feature = "flex")]
+mod fused_max;
 pub mod history;
 pub mod input;
 pub mod interaction;
