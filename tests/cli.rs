@@ -70,7 +70,11 @@ fn bad_arguments_fail_with_a_message() {
 
     let out = rtr(&["render", "--width", "0", "--out", "unused.png"]);
     assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("expected 16 to"));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("--width") && err.contains("16..=20000"),
+        "{err}"
+    );
 
     let out = rtr(&["render", "--out", "scene.bmp"]);
     assert!(!out.status.success());
@@ -424,6 +428,35 @@ fn eval_prints_the_table_row_and_writes_the_documented_json() {
     ] {
         assert!(out_dir.join(file).is_file(), "{file} missing");
     }
+    // A study that cannot be written whole writes nothing: its `figures` is taken by a file.
+    let blocked = dir.path().join("blocked");
+    std::fs::create_dir(&blocked).expect("mkdir");
+    std::fs::write(blocked.join("figures"), "x").expect("write");
+    let out = rtr(&[
+        "eval",
+        "--checkpoint",
+        run.to_str().unwrap(),
+        "--set",
+        "nominal",
+        "--resamples",
+        "100",
+        "--out",
+        blocked.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("figures"), "{err}");
+    assert_eq!(entries(&blocked), ["figures"], "nothing else was written");
+    assert!(!entries(dir.path()).iter().any(|n| n.contains("staging")));
+}
+
+/// The names in `dir`, sorted.
+fn entries(dir: &std::path::Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .expect("dir")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
 }
 
 #[test]
@@ -457,7 +490,7 @@ fn counts_out_of_range_are_refused_naming_the_flag() {
     let dir = tempfile::tempdir().expect("temp dir");
     let csv = dir.path().join("r.csv");
     let csv_path = csv.to_str().unwrap();
-    let cases: [(&str, &[&str]); 6] = [
+    let cases: [(&str, &[&str]); 7] = [
         ("--resamples", &["eval", "--idm", "--resamples", "0"]),
         ("--batch", &["eval", "--idm", "--batch", "0"]),
         (
@@ -500,6 +533,17 @@ fn counts_out_of_range_are_refused_naming_the_flag() {
             "--resamples",
             &["sweep", "--config", "x.toml", "--resamples", "10"],
         ),
+        (
+            "--ood",
+            &[
+                "scenarios",
+                "generate",
+                "--out",
+                "unused",
+                "--ood",
+                "1000000",
+            ],
+        ),
     ];
     for (flag, args) in cases {
         let out = rtr(args);
@@ -523,6 +567,22 @@ fn counts_out_of_range_are_refused_naming_the_flag() {
         !out.status.success() && err.contains("0.05 s horizon") && !err.contains("panicked"),
         "{err}"
     );
+    let out = rtr(&[
+        "scenarios",
+        "generate",
+        "--out",
+        "unused",
+        "--in-distribution",
+        "0",
+        "--ood",
+        "0",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("nothing to generate"),
+        "{err}"
+    );
+    assert!(!std::path::Path::new("unused").exists());
 }
 
 #[test]
@@ -566,7 +626,7 @@ fn unwritable_outputs_are_refused_before_any_work() {
     std::fs::write(&file, "x").expect("write");
     let under_file = file.join("report.json");
     let folder = dir.path().to_str().unwrap();
-    let cases: [(&str, Vec<&str>); 6] = [
+    let cases: [(&str, Vec<&str>); 10] = [
         (
             "--out",
             vec!["eval", "--idm", "--out", file.to_str().unwrap()],
@@ -611,6 +671,36 @@ fn unwritable_outputs_are_refused_before_any_work() {
                 "--out",
                 under_file.to_str().unwrap(),
             ],
+        ),
+        (
+            "--out",
+            vec!["scenarios", "generate", "--out", file.to_str().unwrap()],
+        ),
+        (
+            "--out",
+            vec![
+                "map",
+                "export",
+                "--procedural",
+                "curve",
+                "--out",
+                under_file.to_str().unwrap(),
+            ],
+        ),
+        (
+            "--out",
+            vec![
+                "map",
+                "render",
+                "--procedural",
+                "curve",
+                "--out",
+                under_file.to_str().unwrap(),
+            ],
+        ),
+        (
+            "--out",
+            vec!["render", "--out", under_file.to_str().unwrap()],
         ),
     ];
     for (flag, args) in cases {

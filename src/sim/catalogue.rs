@@ -205,9 +205,13 @@ impl DynamicsFile {
     }
 
     pub fn save(&self, path: &std::path::Path) -> Result<()> {
-        let text = toml::to_string_pretty(self)
-            .map_err(|e| Error::InvalidArgument(format!("cannot write dynamics: {e}")))?;
-        crate::io::atomic_write(path, text.as_bytes())
+        crate::io::atomic_write(path, self.to_toml()?.as_bytes())
+    }
+
+    /// The TOML text [`Self::save`] writes.
+    pub fn to_toml(&self) -> Result<String> {
+        toml::to_string_pretty(self)
+            .map_err(|e| Error::InvalidArgument(format!("cannot write dynamics: {e}")))
     }
 
     /// Every term names each of its parameters once, inside the catalogue's range.

@@ -6,8 +6,9 @@ use clap::{Args, ValueEnum};
 
 use rtr::backend::Backend;
 use rtr::data::{A9Dataset, a9};
+use rtr::io::{OutputKind, check_output};
 use rtr::map::{Map, ProceduralMap};
-use rtr::render::output_paths;
+use rtr::render::{MAX_WIDTH_PX, RenderOptions, check_target, output_paths};
 use rtr::{Error, Result};
 
 /// A count flag within `min..=max`; clap's error names the flag, the value and the range.
@@ -82,10 +83,24 @@ pub fn device_count(devices: Option<usize>, backend: Backend) -> Result<usize> {
     Ok(devices.unwrap_or_else(|| rtr::train::shards::default_devices(backend)))
 }
 
-/// The files an `--out` names: itself if it has an extension, else PREFIX.png and PREFIX.svg.
-pub fn targets(out: &Path) -> Vec<PathBuf> {
-    match out.extension() {
+/// The image files an `--out` names (itself if it has an extension, else PREFIX.png and
+/// PREFIX.svg), each checked before any work: a .png or .svg name, writable.
+pub fn image_targets(out: &Path, opts: &RenderOptions) -> Result<Vec<PathBuf>> {
+    let paths = match out.extension() {
         Some(_) => vec![out.to_path_buf()],
         None => output_paths(out).to_vec(),
+    };
+    for path in &paths {
+        check_target(path, opts).map_err(|e| match e {
+            Error::InvalidArgument(why) => Error::InvalidArgument(format!("--out {why}")),
+            other => other,
+        })?;
+        check_output(path, OutputKind::File, "--out")?;
     }
+    Ok(paths)
+}
+
+/// `--width` of a picture, in pixels.
+pub fn image_width() -> impl clap::builder::TypedValueParser<Value = u32> {
+    clap::value_parser!(u32).range(16..=i64::from(MAX_WIDTH_PX))
 }

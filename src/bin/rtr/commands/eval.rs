@@ -8,7 +8,7 @@ use rtr::backend::Backend;
 use rtr::data::{SceneConfig, commonroad};
 use rtr::eval::study::{evaluate_entries, load_entries, write_study};
 use rtr::eval::{EvalConfig, EvalScenes, EvalSet, load_sets, markdown_table};
-use rtr::io::{OutputKind, check_output};
+use rtr::io::{OutputKind, StagedFolder, check_output};
 use rtr::{Error, Result};
 
 use super::args::{DataArgs, count};
@@ -92,14 +92,17 @@ pub fn run(args: EvalArgs) -> Result<()> {
     progress.finish_and_clear();
     print!("{}", markdown_table(&results, &sets));
     if let Some(out) = &args.out {
-        let mut written = write_study(out, &entries, &results, &scenes, &device)?;
+        // Tables and figures land together or not at all (a figure that fails leaves no table).
+        let staged = StagedFolder::new(out)?;
+        let mut written = write_study(staged.path(), &entries, &results, &scenes, &device)?;
         if !clip_summaries.is_empty() {
-            let path = out.join("commonroad.json");
+            let path = staged.path().join("commonroad.json");
             let text = serde_json::to_string_pretty(&clip_summaries)
                 .map_err(|e| Error::InvalidArgument(format!("cannot encode clips: {e}")))?;
             rtr::io::atomic_write(&path, text.as_bytes())?;
             written.push(path);
         }
+        staged.commit()?;
         println!("wrote {} files to {}", written.len(), out.display());
     }
     Ok(())

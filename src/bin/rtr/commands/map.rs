@@ -5,11 +5,12 @@ use std::path::PathBuf;
 use clap::Subcommand;
 
 use rtr::data::a9;
+use rtr::io::{OutputKind, check_output};
 use rtr::map::{LaneGraph, to_xodr};
-use rtr::render::{RenderOptions, check_target, render_map};
+use rtr::render::{RenderOptions, render_map};
 use rtr::{Error, Result};
 
-use super::args::{MapSource, targets};
+use super::args::{MapSource, image_targets, image_width};
 
 #[derive(Subcommand)]
 pub enum MapCommand {
@@ -22,7 +23,7 @@ pub enum MapCommand {
         /// Output file (.png or .svg), or a prefix without extension for both.
         #[arg(long)]
         out: PathBuf,
-        #[arg(long, default_value_t = 2400)]
+        #[arg(long, default_value_t = 2400, value_parser = image_width())]
         width: u32,
     },
     /// Write the map as an OpenDRIVE file (procedural maps open in any OpenDRIVE viewer).
@@ -57,17 +58,16 @@ pub fn run(command: MapCommand) -> Result<()> {
                 width_px: width,
                 ..Default::default()
             };
-            for path in &targets(&out) {
-                check_target(path, &opts)?;
-            }
+            let targets = image_targets(&out, &opts)?;
             let map = source.load()?;
-            for path in targets(&out) {
+            for path in targets {
                 render_map(&map, &path, &opts)?;
                 println!("wrote {}", path.display());
             }
             Ok(())
         }
         MapCommand::Export { source, out } => {
+            check_output(&out, OutputKind::File, "--out")?;
             let map = source.load()?;
             let od = map.opendrive().ok_or_else(|| {
                 Error::InvalidArgument(format!("{} is not an OpenDRIVE map", map.source()))

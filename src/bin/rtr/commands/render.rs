@@ -5,10 +5,10 @@ use std::path::{Path, PathBuf};
 use clap::Args;
 
 use rtr::data::SceneConfig;
-use rtr::render::{RenderOptions, check_target, render_scene};
+use rtr::render::{RenderOptions, render_scene};
 use rtr::{Error, Result};
 
-use super::args::{DataArgs, Split, targets};
+use super::args::{DataArgs, Split, image_targets, image_width};
 
 #[derive(Args)]
 pub struct RenderArgs {
@@ -30,7 +30,7 @@ pub struct RenderArgs {
     #[arg(long)]
     out: PathBuf,
     /// Image width in pixels.
-    #[arg(long, default_value_t = 2400)]
+    #[arg(long, default_value_t = 2400, value_parser = image_width())]
     width: u32,
 }
 
@@ -39,11 +39,9 @@ pub fn run(args: RenderArgs) -> Result<()> {
         width_px: args.width,
         ..Default::default()
     };
-    for path in &targets(&args.out) {
-        check_target(path, &opts)?;
-    }
+    let targets = image_targets(&args.out, &opts)?;
     if let Some(path) = &args.scenario {
-        return render_scenario(path, &args);
+        return render_scenario(path, &args, &targets);
     }
     let dataset = args.data.load()?;
     let split = dataset.scenes(&SceneConfig::default())?;
@@ -67,7 +65,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
             ))
         })?,
     };
-    for path in &targets(&args.out) {
+    for path in &targets {
         render_scene(scene, path, &opts)?;
         println!("wrote {}", path.display());
     }
@@ -81,7 +79,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     Ok(())
 }
 
-fn render_scenario(path: &Path, args: &RenderArgs) -> Result<()> {
+fn render_scenario(path: &Path, args: &RenderArgs, targets: &[PathBuf]) -> Result<()> {
     let scenario = rtr::scenario::ConcreteScenario::from_json_file(path)?;
     let scene = rtr::scenario::scene_with_reference_future(&scenario)?;
     // The stretch where it happens: around the target, a little ahead of it.
@@ -97,7 +95,7 @@ fn render_scenario(path: &Path, args: &RenderArgs) -> Result<()> {
         focus: Some((target, 200.0)),
         ..Default::default()
     };
-    for target in &targets(&args.out) {
+    for target in targets {
         render_scene(&scene, target, &opts)?;
         println!("wrote {}", target.display());
     }

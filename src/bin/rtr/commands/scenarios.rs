@@ -5,9 +5,13 @@ use std::path::PathBuf;
 use clap::Subcommand;
 
 use rtr::Result;
+use rtr::io::{OutputKind, StagedFolder, check_output};
 use rtr::scenario::{GenerateConfig, ScenarioSet, builtin_families, generate_sets, load_families};
 
-use super::args::DataArgs;
+use super::args::{DataArgs, count};
+
+/// Most scenarios one flag may ask for: 100 times the paper's sets, about an hour of drawing.
+const MAX_SCENARIOS: u64 = 50_000;
 
 #[derive(Subcommand)]
 pub enum ScenariosCommand {
@@ -22,10 +26,10 @@ pub enum ScenariosCommand {
         #[arg(long)]
         families: Option<PathBuf>,
         /// Concrete scenarios from the training families (split alternately into train/eval).
-        #[arg(long, default_value_t = 333)]
+        #[arg(long, default_value_t = 333, value_parser = count(0, MAX_SCENARIOS))]
         in_distribution: usize,
         /// Concrete scenarios from the held-out families.
-        #[arg(long, default_value_t = 84)]
+        #[arg(long, default_value_t = 84, value_parser = count(0, MAX_SCENARIOS))]
         ood: usize,
         #[command(flatten)]
         data: DataArgs,
@@ -60,6 +64,14 @@ pub fn run(command: ScenariosCommand) -> Result<()> {
             data,
         } => {
             let start = std::time::Instant::now();
+            if in_distribution + ood == 0 {
+                return Err(rtr::Error::InvalidArgument(
+                    "--in-distribution 0 and --ood 0: nothing to generate; expected at least one \
+                     scenario"
+                        .into(),
+                ));
+            }
+            check_output(&out, OutputKind::Folder, "--out")?;
             let families = load_families(&families.unwrap_or_else(builtin_families))?;
             let dataset = data.load()?;
             let stats =
@@ -71,7 +83,9 @@ pub fn run(command: ScenariosCommand) -> Result<()> {
                 ..Default::default()
             };
             let sets = generate_sets(&families, &stats, &config)?;
-            let written = sets.write(&out)?;
+            let staged = StagedFolder::new(&out)?;
+            let written = sets.write(staged.path())?;
+            staged.commit()?;
             for set in ScenarioSet::ALL {
                 let list = sets.set(set);
                 let collided = list

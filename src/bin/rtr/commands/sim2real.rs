@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 
-use rtr::io::{OutputKind, check_output};
+use rtr::io::{OutputKind, StagedFolder, check_output};
 use rtr::sim2real::{Sim2RealOptions, a9::a9_recordings, identify, plots::write_plots};
 use rtr::{Error, Result};
 
@@ -84,18 +84,35 @@ pub fn run(args: Sim2RealArgs) -> Result<()> {
     for line in report.summary() {
         println!("{line}");
     }
+    // Everything is rendered before anything is written, and written together: a plot that
+    // fails leaves no report behind.
     let json = serde_json::to_string_pretty(report)
         .map_err(|e| Error::InvalidArgument(format!("cannot encode the report: {e}")))?;
+    let dynamics = match &args.save_dynamics {
+        Some(_) => Some(report.dynamics().to_toml()?),
+        None => None,
+    };
+    let plots = match &args.plots {
+        Some(dir) => {
+            let staged = StagedFolder::new(dir)?;
+            let written = write_plots(staged.path(), &outcome)?;
+            Some((staged, written))
+        }
+        None => None,
+    };
     rtr::io::atomic_write(&args.report, json.as_bytes())?;
-    println!("report: {}", args.report.display());
-    if let Some(dir) = &args.plots {
-        let written = write_plots(dir, &outcome)?;
+    if let (Some(path), Some(text)) = (&args.save_dynamics, &dynamics) {
+        rtr::io::atomic_write(path, text.as_bytes())?;
+    }
+    if let Some((staged, written)) = plots {
+        let written: Vec<_> = written.iter().map(|p| staged.final_path(p)).collect();
+        staged.commit()?;
         for path in written {
             println!("plot: {}", path.display());
         }
     }
+    println!("report: {}", args.report.display());
     if let Some(path) = &args.save_dynamics {
-        report.dynamics().save(path)?;
         println!(
             "dynamics ({} terms): {}",
             report.dynamics().terms.len(),

@@ -1,8 +1,13 @@
 //! File input and output shared by every module. Output is atomic: results, checkpoints and
 //! pictures are written to a temporary file in the destination's folder and renamed into
-//! place, so a crash never leaves a half file. TOML input errors name the line and column.
+//! place, so a crash never leaves a half file; a command's several files are staged together
+//! ([`StagedFolder`]). TOML input errors name the line and column.
+
+mod staged;
 
 use std::path::{Path, PathBuf};
+
+pub use staged::StagedFolder;
 
 use crate::error::{Error, Result};
 

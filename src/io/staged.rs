@@ -1,0 +1,217 @@
+//! Outputs of one command made all or nothing. A command that writes several files (a study's
+//! tables and figures, a scenario set, a report with its plots) writes them into a hidden
+//! staging folder beside the real one and moves them in only once everything was written; if
+//! it fails on the way, the staging folder is removed and the destination is as it was.
+//! Single files are already atomic ([`super::atomic_write`]); this extends that to a folder.
+
+use std::path::{Path, PathBuf};
+
+use crate::error::{Error, Result};
+
+/// A folder being written: write under [`Self::path`], then [`Self::commit`]. Dropped without
+/// a commit (an error on the way), it removes what it staged and the folders it created.
+#[derive(Debug)]
+pub struct StagedFolder {
+    target: PathBuf,
+    staging: PathBuf,
+    /// Folders on the way to `target` that did not exist, outermost first.
+    created: Vec<PathBuf>,
+    committed: bool,
+}
+
+impl StagedFolder {
+    /// Stages a new or existing folder `target`. Creates its missing parents (removed again
+    /// if nothing is committed) and the staging folder beside it.
+    pub fn new(target: &Path) -> Result<Self> {
+        if target.is_file() {
+            return Err(Error::InvalidArgument(format!(
+                "{} is a file; expected a folder",
+                target.display()
+            )));
+        }
+        let parent = match target.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        let name = target
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "out".into());
+        let created = create_missing(&parent)?;
+        let staged = Self {
+            target: target.to_path_buf(),
+            staging: parent.join(format!(".{name}.staging.{}", std::process::id())),
+            created,
+            committed: false,
+        };
+        if staged.staging.exists() {
+            // A leftover of a killed run with the same process id.
+            std::fs::remove_dir_all(&staged.staging).map_err(|e| Error::io(&staged.staging, e))?;
+        }
+        std::fs::create_dir(&staged.staging).map_err(|e| Error::io(&staged.staging, e))?;
+        Ok(staged)
+    }
+
+    /// Where the command writes what will end up in the target folder.
+    pub fn path(&self) -> &Path {
+        &self.staging
+    }
+
+    /// Where `staged` (a path under [`Self::path`]) lands once committed.
+    pub fn final_path(&self, staged: &Path) -> PathBuf {
+        match staged.strip_prefix(&self.staging) {
+            Ok(rest) => self.target.join(rest),
+            Err(_) => staged.to_path_buf(),
+        }
+    }
+
+    /// Moves everything staged into the target folder (replacing files of the same name) and
+    /// removes the staging folder. Refuses, before moving anything, when a staged file would
+    /// land on a folder or a staged folder on a file.
+    pub fn commit(mut self) -> Result<()> {
+        if self.target.exists() {
+            check_mergeable(&self.staging, &self.target)?;
+            merge(&self.staging, &self.target)?;
+            std::fs::remove_dir_all(&self.staging).map_err(|e| Error::io(&self.staging, e))?;
+        } else {
+            std::fs::rename(&self.staging, &self.target).map_err(|e| Error::io(&self.target, e))?;
+        }
+        self.committed = true;
+        Ok(())
+    }
+}
+
+impl Drop for StagedFolder {
+    fn drop(&mut self) {
+        if self.committed {
+            return;
+        }
+        let _ = std::fs::remove_dir_all(&self.staging);
+        for dir in self.created.iter().rev() {
+            // Only empty folders go: anything another process put there stays.
+            let _ = std::fs::remove_dir(dir);
+        }
+    }
+}
+
+/// Creates `dir` and its missing ancestors; returns those it created, outermost first.
+fn create_missing(dir: &Path) -> Result<Vec<PathBuf>> {
+    let missing: Vec<PathBuf> = dir
+        .ancestors()
+        .take_while(|a| !a.as_os_str().is_empty() && !a.exists())
+        .map(Path::to_path_buf)
+        .collect();
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    Ok(missing.into_iter().rev().collect())
+}
+
+/// Every staged entry can land in `target`: no file onto a folder, no folder onto a file.
+fn check_mergeable(staged: &Path, target: &Path) -> Result<()> {
+    for entry in std::fs::read_dir(staged).map_err(|e| Error::io(staged, e))? {
+        let entry = entry.map_err(|e| Error::io(staged, e))?;
+        let from = entry.path();
+        let to = target.join(entry.file_name());
+        match (from.is_dir(), to.exists(), to.is_dir()) {
+            (true, true, true) => check_mergeable(&from, &to)?,
+            (true, true, false) => {
+                return Err(Error::InvalidArgument(format!(
+                    "{} is a file where a folder is to be written; nothing was written",
+                    to.display()
+                )));
+            }
+            (false, true, true) => {
+                return Err(Error::InvalidArgument(format!(
+                    "{} is a folder where a file is to be written; nothing was written",
+                    to.display()
+                )));
+            }
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
+/// Moves the entries of `staged` into `target`, folder by folder (each file by one rename).
+fn merge(staged: &Path, target: &Path) -> Result<()> {
+    for entry in std::fs::read_dir(staged).map_err(|e| Error::io(staged, e))? {
+        let entry = entry.map_err(|e| Error::io(staged, e))?;
+        let from = entry.path();
+        let to = target.join(entry.file_name());
+        if from.is_dir() && to.is_dir() {
+            merge(&from, &to)?;
+        } else {
+            std::fs::rename(&from, &to).map_err(|e| Error::io(&to, e))?;
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn names(dir: &Path) -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(dir)
+            .expect("list")
+            .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    }
+
+    #[test]
+    fn a_failed_command_leaves_nothing() {
+        let root = tempfile::tempdir().expect("temp dir");
+        let target = root.path().join("a/b/out");
+        let result: Result<()> = (|| {
+            let staged = StagedFolder::new(&target)?;
+            std::fs::write(staged.path().join("results.json"), b"{}")
+                .map_err(|e| Error::io(staged.path(), e))?;
+            Err(Error::InvalidArgument("a figure failed".into()))
+        })();
+        assert!(result.is_err());
+        assert!(names(root.path()).is_empty(), "{:?}", names(root.path()));
+    }
+
+    #[test]
+    fn commit_creates_or_merges_the_folder() {
+        let root = tempfile::tempdir().expect("temp dir");
+        let target = root.path().join("out");
+        let staged = StagedFolder::new(&target).expect("stage");
+        std::fs::create_dir(staged.path().join("figures")).expect("mkdir");
+        std::fs::write(staged.path().join("figures/a.svg"), b"a").expect("write");
+        assert_eq!(
+            staged.final_path(&staged.path().join("figures/a.svg")),
+            target.join("figures/a.svg")
+        );
+        staged.commit().expect("commit");
+        // Into an existing folder: new files join, same-named ones are replaced, others stay.
+        std::fs::write(target.join("keep.txt"), b"k").expect("write");
+        let staged = StagedFolder::new(&target).expect("stage");
+        std::fs::create_dir(staged.path().join("figures")).expect("mkdir");
+        std::fs::write(staged.path().join("figures/a.svg"), b"new").expect("write");
+        std::fs::write(staged.path().join("table.md"), b"t").expect("write");
+        staged.commit().expect("commit");
+        assert_eq!(names(&target), ["figures", "keep.txt", "table.md"]);
+        assert_eq!(
+            std::fs::read(target.join("figures/a.svg")).expect("read"),
+            b"new"
+        );
+        assert_eq!(names(root.path()), ["out"], "no staging folder is left");
+    }
+
+    #[test]
+    fn a_conflict_is_refused_before_anything_moves() {
+        let root = tempfile::tempdir().expect("temp dir");
+        let target = root.path().join("out");
+        std::fs::create_dir(&target).expect("mkdir");
+        std::fs::write(target.join("figures"), b"a file").expect("write");
+        let staged = StagedFolder::new(&target).expect("stage");
+        std::fs::write(staged.path().join("results.json"), b"{}").expect("write");
+        std::fs::create_dir(staged.path().join("figures")).expect("mkdir");
+        let err = staged.commit().expect_err("figures is a file");
+        assert!(err.to_string().contains("figures"), "{err}");
+        assert_eq!(names(&target), ["figures"]);
+        assert_eq!(names(root.path()), ["out"]);
+    }
+}
