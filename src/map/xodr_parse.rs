@@ -252,7 +252,15 @@ impl Ctx<'_, '_> {
                 ));
             }
         };
-        Ok(Some(v * factor))
+        let speed = v * factor;
+        let max = crate::data::track::MAX_SPEED;
+        if !(speed > 0.0 && speed <= max) {
+            return Err(self.err(
+                node,
+                format!("<speed> attribute `max` is {raw} ({speed} m/s); expected a limit in (0, {max}] m/s"),
+            ));
+        }
+        Ok(Some(speed))
     }
 
     fn road(&self, node: Node) -> Result<Road> {
@@ -320,7 +328,20 @@ impl Ctx<'_, '_> {
         }
         sort_by_s(&mut road.lane_offsets, |o| o.s);
         for sec in elements(lanes, "laneSection") {
-            road.lane_sections.push(self.lane_section(sec)?);
+            let section = self.lane_section(sec)?;
+            // A section starting at or past the road's end has no lanes to sample: refused,
+            // not dropped in silence.
+            if !(section.s >= 0.0 && section.s < road.length) {
+                return Err(self.err(
+                    sec,
+                    format!(
+                        "road {}: <laneSection> attribute `s` is {}; expected metres in [0, {}) \
+                         (the road's length)",
+                        road.id, section.s, road.length
+                    ),
+                ));
+            }
+            road.lane_sections.push(section);
         }
         if road.lane_sections.is_empty() {
             return Err(self.err(

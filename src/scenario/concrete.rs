@@ -176,13 +176,18 @@ impl ConcreteScenario {
 
     pub fn from_json_file(path: &Path) -> Result<Self> {
         let text = crate::io::read_text(path)?;
-        let scenario: Self = serde_json::from_str(&text).map_err(|e| Error::Parse {
-            source_name: path.display().to_string(),
+        Self::from_json_str(&text, &path.display().to_string())
+    }
+
+    /// Parses and checks a scenario; errors name `source_name` and the line or field.
+    pub fn from_json_str(text: &str, source_name: &str) -> Result<Self> {
+        let scenario: Self = serde_json::from_str(text).map_err(|e| Error::Parse {
+            source_name: source_name.to_string(),
             line: e.line(),
             column: e.column(),
             message: e.to_string(),
         })?;
-        scenario.check(&path.display().to_string())?;
+        scenario.check(source_name)?;
         Ok(scenario)
     }
 
