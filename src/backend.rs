@@ -56,6 +56,15 @@ impl Backend {
         }
     }
 
+    /// Whether this build has the backend (its cargo feature was enabled).
+    pub fn is_compiled(self) -> bool {
+        match self {
+            Backend::NdArray => true,
+            Backend::Flex => cfg!(feature = "flex"),
+            Backend::Wgpu => cfg!(feature = "wgpu"),
+        }
+    }
+
     /// The device, with autodiff when `autodiff` (training, gradient checks).
     pub fn device(self, autodiff: bool) -> Result<Device> {
         let device = self.plain_device()?;

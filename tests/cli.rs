@@ -725,3 +725,27 @@ fn unwritable_outputs_are_refused_before_any_work() {
         .collect();
     assert_eq!(names, ["a-file"], "nothing else was written");
 }
+
+/// A fresh run refused after its data loaded (here a missing dynamics file) leaves no run
+/// folder behind: nothing for a later `--resume` to trip over.
+#[test]
+fn a_refused_training_run_leaves_no_folder() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let run = dir.path().join("run");
+    let missing = dir.path().join("nope_dynamics.toml");
+    let out = rtr(&[
+        "train",
+        "--config",
+        "experiments/main/small/il.toml",
+        "--dynamics",
+        missing.to_str().unwrap(),
+        "--out",
+        run.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("nope_dynamics.toml"),
+        "{err}"
+    );
+    assert!(!run.exists(), "the run folder was left behind");
+}

@@ -106,7 +106,7 @@ fn to_csv_then_parse_round_trips_exactly() {
             s * 0.1,
             s * 1.3 + (s * 0.37).sin() * 0.123456789,
             -(s * 0.11).cos() / 3.0,
-            (s * 0.05).sin() * std::f64::consts::PI,
+            (s * 0.05).sin() * 0.05 * std::f64::consts::PI,
             13.0 + s / 7.0,
             (s * 0.3).sin() * 1.7,
             (s * 0.2).cos() * 0.05,
@@ -117,7 +117,7 @@ fn to_csv_then_parse_round_trips_exactly() {
                 100.0 + s * 0.04 / 2.0,
                 s / 3.0,
                 -1.0 / 7.0,
-                0.1 * s,
+                16.0 + 0.01 * s,
                 -1.0 / 3.0
             ));
         }

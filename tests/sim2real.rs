@@ -358,7 +358,10 @@ fn a_run_file_names_a_dynamics_file_relative_to_itself() {
             "feature = \"kappa_v\"\ncoefficient = 0.3",
             "not in the dv/dt library",
         ),
-        ("feature = \"u_brake\"\ncoefficient = nan", "not finite"),
+        (
+            "feature = \"u_brake\"\ncoefficient = nan",
+            "expected a finite value",
+        ),
         ("feature = \"u_squared\"\ncoefficient = 0.3", "u_squared"),
     ] {
         std::fs::write(

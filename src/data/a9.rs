@@ -29,19 +29,25 @@ pub struct A9Dataset {
     pub lane_graph: Arc<LaneGraph>,
 }
 
+/// The A9 map alone (for the benches), checked against its published sha256 like
+/// [`A9Dataset::load`] does.
+pub fn load_map(dir: &Path) -> Result<Map> {
+    let xodr = dir.join(STATIC_FILE);
+    let actual = sha256_file(&xodr)?;
+    if actual != A9_STATIC_SHA256 {
+        return Err(Error::Checksum {
+            path: xodr,
+            expected: A9_STATIC_SHA256.into(),
+            actual,
+        });
+    }
+    Map::from_xodr_file(&xodr)
+}
+
 impl A9Dataset {
     /// Loads both files from `dir`, checking each against its published sha256.
     pub fn load(dir: &Path) -> Result<Self> {
-        let xodr = dir.join(STATIC_FILE);
-        let actual = sha256_file(&xodr)?;
-        if actual != A9_STATIC_SHA256 {
-            return Err(Error::Checksum {
-                path: xodr,
-                expected: A9_STATIC_SHA256.into(),
-                actual,
-            });
-        }
-        let map = Arc::new(Map::from_xodr_file(&xodr)?);
+        let map = Arc::new(load_map(dir)?);
         let lane_graph = Arc::new(LaneGraph::build(&map, LANE_NODE_LENGTH));
         let recording = load_recording(&dir.join(DYNAMIC_FILE), Some(A9_DYNAMIC_SHA256))?;
         Ok(Self {

@@ -5,6 +5,7 @@ pub mod a9;
 pub mod automatum;
 pub mod commonroad;
 pub mod logged_infractions;
+pub mod motion;
 pub mod recordings;
 pub mod scene_list;
 pub mod summary;

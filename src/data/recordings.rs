@@ -612,7 +612,8 @@ impl TrackBuilder {
         } else {
             0.5 * (sorted[n / 2 - 1] + sorted[n / 2])
         };
-        if !(MIN_PERIOD..=MAX_PERIOD).contains(&period) {
+        // A relative slack, so a 1 kHz log whose float timestamps step 0.000999... passes.
+        if !(MIN_PERIOD * (1.0 - 1e-6)..=MAX_PERIOD * (1.0 + 1e-6)).contains(&period) {
             let hint = if period > MAX_PERIOD {
                 "timestamps in milliseconds? "
             } else {
@@ -652,8 +653,29 @@ impl TrackBuilder {
                 ));
             }
         }
-        Self::check_jumps(source, &track, &self.lines)?;
         track.period = period;
+        Self::check_jumps(source, &track, &self.lines)?;
+        check_motion(source, &track)?;
         Ok(track)
     }
+}
+
+/// The speed and heading columns agree with how the positions move ([`super::motion`]), so
+/// speeds in km/h, headings in degrees or pointing backwards are refused, not fitted.
+fn check_motion(source: &str, track: &RecordedTrack) -> Result<()> {
+    let place = format!("track `{}` (from line {})", track.id, track.first_line);
+    super::motion::check(
+        track.period,
+        &track.x,
+        &track.y,
+        &track.heading,
+        &track.speed,
+    )
+    .map_err(|mismatch| {
+        Error::invalid(
+            source,
+            format!("{place}, column `{}`", mismatch.column()),
+            mismatch.to_string(),
+        )
+    })
 }

@@ -63,6 +63,7 @@ impl TrainedPolicy {
         let mut config = TrainConfig::from_toml_str(&text, &config_path.display().to_string())?;
         // Evaluation needs neither the frozen KL reference nor the training data.
         config.reference = None;
+        config.dynamics = resolve_dynamics(config.dynamics.take(), &config_path)?;
         let network = load_policy(&policy_path, &config.model, device)?;
         let dynamics = config.dynamics(device)?;
         Ok(Self {
@@ -72,6 +73,28 @@ impl TrainedPolicy {
             network,
             dynamics,
         })
+    }
+}
+
+/// The dynamics file a run's `config.toml` names: as written if it exists (absolute, or
+/// relative to the current folder as older runs stored it), else beside the config.
+fn resolve_dynamics(path: Option<PathBuf>, config_path: &Path) -> Result<Option<PathBuf>> {
+    let Some(path) = path else {
+        return Ok(None);
+    };
+    let beside = config_path.parent().map(|dir| dir.join(&path));
+    match (path.exists(), beside) {
+        (true, _) => Ok(Some(path)),
+        (false, Some(beside)) if beside.exists() => Ok(Some(beside)),
+        _ => Err(Error::invalid(
+            config_path.display().to_string(),
+            "field `dynamics`",
+            format!(
+                "{} not found (looked from the current folder and beside config.toml); \
+                 expected the dynamics file the run was trained with",
+                path.display()
+            ),
+        )),
     }
 }
 

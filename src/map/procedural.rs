@@ -179,19 +179,40 @@ fn check_common(lanes: usize, min_lanes: usize, lane_width: f64, length: f64) ->
             "procedural map: lanes is {lanes}, expected {min_lanes} to 20"
         )));
     }
-    positive("lane_width", lane_width)?;
-    if lane_width > 10.0 {
+    if !(MIN_LANE_WIDTH..=10.0).contains(&lane_width) {
         return Err(bad(format!(
-            "procedural map: lane_width is {lane_width} m, expected at most 10 m"
+            "procedural map: lane_width is {lane_width} m, expected a driving lane \
+             {MIN_LANE_WIDTH}-10 m wide"
         )));
     }
-    positive("length", length)
+    if !(MIN_LENGTH..=crate::map::MAX_ROAD_LENGTH).contains(&length) {
+        return Err(bad(format!(
+            "procedural map: length is {length} m, expected {MIN_LENGTH} to {} m",
+            crate::map::MAX_ROAD_LENGTH
+        )));
+    }
+    Ok(())
 }
+
+/// Narrowest generated driving lane (m).
+const MIN_LANE_WIDTH: f64 = 2.0;
+/// Shortest generated road (m): room for a few vehicles.
+const MIN_LENGTH: f64 = 20.0;
+/// Shortest lane that opens or ends (a taper) or an auxiliary lane (m).
+const MIN_TRANSITION: f64 = 10.0;
+/// Widest median of a divided road (m).
+const MAX_MEDIAN: f64 = 50.0;
 
 /// Checks that `parts` (name, value) are positive and end before `length`.
 fn check_fits(length: f64, parts: &[(&str, f64)]) -> Result<()> {
     for (name, v) in parts {
         positive(name, *v)?;
+        // A lane that appears, ends or runs alongside over a few centimetres is no lane.
+        if (name.contains("taper") || name.contains("lane_length")) && *v < MIN_TRANSITION {
+            return Err(bad(format!(
+                "procedural map: {name} is {v} m, expected at least {MIN_TRANSITION} m"
+            )));
+        }
     }
     let total: f64 = parts.iter().map(|p| p.1).sum();
     if total >= length {
@@ -296,6 +317,14 @@ impl ProceduralMap {
                     return Err(bad(format!(
                         "procedural map: curvature {curvature} 1/m is too tight for a {width} m wide road \
                          (expected |curvature| * width < 0.5)"
+                    )));
+                }
+                // The arc and the two clothoids turn the road by 0.45 * length * curvature.
+                let turn = 0.45 * length * curvature.abs();
+                if turn > std::f64::consts::PI {
+                    return Err(bad(format!(
+                        "procedural map: curvature {curvature} 1/m over {length} m turns the road by \
+                         {turn:.2} rad, so it would cross itself; expected at most pi"
                     )));
                 }
                 let k = curvature;
@@ -409,6 +438,11 @@ fn check_layout(layout: Layout, lanes: usize, lane_width: f64) -> Result<f64> {
         Layout::OneWay => Ok(side),
         Layout::Divided { median_width } => {
             positive("median_width", median_width)?;
+            if median_width > MAX_MEDIAN {
+                return Err(bad(format!(
+                    "procedural map: median_width is {median_width} m, expected at most {MAX_MEDIAN} m"
+                )));
+            }
             Ok(2.0 * side + median_width)
         }
     }

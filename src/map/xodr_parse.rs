@@ -27,6 +27,59 @@ const MIN_DRIVING_WIDTH: f64 = 0.5;
 const MAX_ROAD_LENGTH: f64 = 100_000.0;
 /// Tightest plausible curvature (1/m): a 2 m radius.
 const MAX_CURVATURE: f64 = 0.5;
+/// Farthest plausible position from the map origin (m).
+const MAX_COORDINATE: f64 = 1e7;
+/// Farthest plausible lane offset from the reference line (m).
+const MAX_LANE_OFFSET: f64 = 50.0;
+
+/// How far a geometry may start from where the previous one ended, or the last end from the
+/// road's length (m): rounding in real files, not a gap.
+fn chain_slack(road_length: f64) -> f64 {
+    0.5f64.max(1e-3 * road_length)
+}
+
+/// Largest |curvature| (1/m) of a poly3 or paramPoly3 geometry of `length`, sampled; `None`
+/// for the shapes whose curvature is an attribute (checked where read).
+fn polynomial_curvature(kind: &GeometryKind, length: f64) -> Option<f64> {
+    const SAMPLES: usize = 256;
+    let curvature = |du: f64, dv: f64, ddu: f64, ddv: f64| {
+        (du * ddv - dv * ddu).abs() / (du * du + dv * dv).powf(1.5).max(1e-300)
+    };
+    let max_over = |range: f64, at: &dyn Fn(f64) -> f64| {
+        (0..=SAMPLES)
+            .map(|i| at(range * i as f64 / SAMPLES as f64))
+            .fold(0.0, f64::max)
+    };
+    match *kind {
+        // The road follows the cubic until it has run `length` metres, at some u <= length:
+        // find that u, then sample the curvature up to it.
+        GeometryKind::Poly3 { b, c, d, .. } => {
+            let slope = |u: f64| b + 2.0 * c * u + 3.0 * d * u * u;
+            let step = length / 4096.0;
+            let (mut u, mut travelled) = (0.0, 0.0);
+            while travelled < length && u < length {
+                travelled += step * (1.0 + slope(u + 0.5 * step).powi(2)).sqrt();
+                u += step;
+            }
+            Some(max_over(u, &|u| {
+                curvature(1.0, slope(u), 0.0, 2.0 * c + 6.0 * d * u)
+            }))
+        }
+        GeometryKind::ParamPoly3 { u, v, p_range } => {
+            let range = match p_range {
+                PRange::ArcLength => length,
+                PRange::Normalized => 1.0,
+            };
+            let d1 = |c: [f64; 4], p: f64| c[1] + 2.0 * c[2] * p + 3.0 * c[3] * p * p;
+            let d2 = |c: [f64; 4], p: f64| 2.0 * c[2] + 6.0 * c[3] * p;
+            Some(max_over(range, &|p| {
+                curvature(d1(u, p), d1(v, p), d2(u, p), d2(v, p))
+            }))
+        }
+        _ => None,
+    }
+}
+
 /// Rounding slack of a width polynomial that should end at exactly 0 (m).
 const WIDTH_SLACK: f64 = 1e-6;
 
@@ -105,8 +158,31 @@ fn width_samples(lane: &Lane, start: f64, end: f64) -> impl Iterator<Item = (f64
             .map_or(end - start, |next| next.s)
             .max(w.s);
         let length = span_end - w.s;
-        [0.0, 0.5, 1.0].map(|f| (start + w.s + f * length, w.value(f * length)))
+        cubic_extremes(w, length).map(move |ds| (start + w.s + ds, w.value(ds)))
     })
+}
+
+/// Where a cubic record takes its extreme values over `[0, length]`: the two ends and the
+/// roots of its derivative inside (so a width that bulges between samples is still seen).
+fn cubic_extremes(p: &Poly3Record, length: f64) -> impl Iterator<Item = f64> + use<> {
+    // p'(ds) = b + 2c ds + 3d ds^2.
+    let (qa, qb, qc) = (3.0 * p.d, 2.0 * p.c, p.b);
+    let roots: [Option<f64>; 2] = if qa.abs() < 1e-15 {
+        [(qb.abs() > 1e-15).then(|| -qc / qb), None]
+    } else {
+        let disc = qb * qb - 4.0 * qa * qc;
+        if disc < 0.0 {
+            [None, None]
+        } else {
+            let r = disc.sqrt();
+            [Some((-qb + r) / (2.0 * qa)), Some((-qb - r) / (2.0 * qa))]
+        }
+    };
+    [Some(0.0), Some(length)]
+        .into_iter()
+        .chain(roots)
+        .flatten()
+        .filter(move |ds| ds.is_finite() && (0.0..=length).contains(ds))
 }
 
 struct Ctx<'a, 'input> {
@@ -321,10 +397,27 @@ impl Ctx<'_, '_> {
             ));
         }
         sort_by_s(&mut road.geometries, |g| g.s);
+        self.check_plan_view(plan_view, &road)?;
         let lanes = element(node, "lanes")
             .ok_or_else(|| self.err(node, format!("road {} has no <lanes>", road.id)))?;
         for o in elements(lanes, "laneOffset") {
-            road.lane_offsets.push(self.poly3(o, "s")?);
+            let offset = self.poly3(o, "s")?;
+            let length = (road.length - offset.s).max(0.0);
+            if let Some(ds) =
+                cubic_extremes(&offset, length).find(|&ds| offset.value(ds).abs() > MAX_LANE_OFFSET)
+            {
+                return Err(self.err(
+                    o,
+                    format!(
+                        "road {}: <laneOffset> moves the lanes {} m from the reference line at \
+                         s={}; expected at most {MAX_LANE_OFFSET} m",
+                        road.id,
+                        offset.value(ds),
+                        offset.s + ds
+                    ),
+                ));
+            }
+            road.lane_offsets.push(offset);
         }
         sort_by_s(&mut road.lane_offsets, |o| o.s);
         for sec in elements(lanes, "laneSection") {
@@ -471,6 +564,13 @@ impl Ctx<'_, '_> {
                         ));
                     }
                 };
+                if u[1..].iter().chain(&v[1..]).all(|c| *c == 0.0) {
+                    return Err(self.err(
+                        shape,
+                        "<paramPoly3> has every b, c, d coefficient 0: the curve is a single \
+                         point; expected a curve",
+                    ));
+                }
                 GeometryKind::ParamPoly3 { u, v, p_range }
             }
             other => {
@@ -482,14 +582,80 @@ impl Ctx<'_, '_> {
                 ));
             }
         };
-        Ok(Geometry {
-            s: self.req_f64(node, "s")?,
-            x: self.req_f64(node, "x")?,
-            y: self.req_f64(node, "y")?,
+        let geometry = Geometry {
+            s: self.non_negative(node, "s")?,
+            x: self.coordinate(node, "x")?,
+            y: self.coordinate(node, "y")?,
             hdg: self.req_f64(node, "hdg")?,
             length: self.non_negative(node, "length")?,
             kind,
-        })
+        };
+        if geometry.length <= 0.0 {
+            return Err(self.err(
+                node,
+                "<geometry> attribute `length` is 0; expected metres > 0",
+            ));
+        }
+        if let Some(k) = polynomial_curvature(&geometry.kind, geometry.length)
+            && k > MAX_CURVATURE
+        {
+            return Err(self.err(
+                shape,
+                format!(
+                    "<{}> bends at a radius of {} m; expected a radius of at least {} m",
+                    shape.tag_name().name(),
+                    1.0 / k,
+                    1.0 / MAX_CURVATURE
+                ),
+            ));
+        }
+        Ok(geometry)
+    }
+
+    /// A position (m) within [`MAX_COORDINATE`] of the origin.
+    fn coordinate(&self, node: Node, name: &str) -> Result<f64> {
+        let v = self.req_f64(node, name)?;
+        if v.abs() > MAX_COORDINATE {
+            return Err(self.err(
+                node,
+                format!(
+                    "<{}> attribute `{name}` is {v} m; expected |{name}| <= {MAX_COORDINATE} m \
+                     (metres from the map origin)",
+                    node.tag_name().name()
+                ),
+            ));
+        }
+        Ok(v)
+    }
+
+    /// The road's geometries, sorted, follow one another: each starts where the previous one
+    /// ends, and the last ends at the road's length (within [`CHAIN_SLACK`]).
+    fn check_plan_view(&self, plan_view: Node, road: &Road) -> Result<()> {
+        let mut end = 0.0;
+        for g in &road.geometries {
+            if (g.s - end).abs() > chain_slack(road.length) {
+                return Err(self.err(
+                    plan_view,
+                    format!(
+                        "road {}: a <geometry> starts at s={} but the previous one ends at s={end}; \
+                         expected geometries that follow one another",
+                        road.id, g.s
+                    ),
+                ));
+            }
+            end = g.s + g.length;
+        }
+        if (end - road.length).abs() > chain_slack(road.length) {
+            return Err(self.err(
+                plan_view,
+                format!(
+                    "road {}: the geometries end at s={end} but the road is {} m long; expected \
+                     them to cover the road",
+                    road.id, road.length
+                ),
+            ));
+        }
+        Ok(())
     }
 
     fn lane_section(&self, node: Node) -> Result<LaneSection> {

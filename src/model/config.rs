@@ -40,8 +40,10 @@ pub struct ModelConfig {
     /// Wavelengths (m) of the sine/cosine encoding of distances between two poses.
     pub distance_wavelengths: Vec<f64>,
     /// Physical size of one unit of the action mean: (m/s^2, rad).
+    #[serde(deserialize_with = "exactly_two")]
     pub action_scale: [f64; 2],
     /// Range of log sigma, relative to `action_scale`: sigma = scale * exp(value in range).
+    #[serde(deserialize_with = "exactly_two")]
     pub log_std_range: [f64; 2],
 }
 
@@ -170,14 +172,23 @@ impl ModelConfig {
             );
         }
         let [lo, hi] = self.log_std_range;
-        if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+        // exp(5) = 148 action scales is already no action; below exp(-20) sigma underflows f32.
+        if !(lo >= -20.0 && hi <= 5.0 && lo < hi) {
             return fail(
                 "log_std_range",
-                format!("expected [low, high] with low < high, got [{lo}, {hi}]"),
+                format!("expected [low, high] with -20 <= low < high <= 5, got [{lo}, {hi}]"),
             );
         }
         Ok(())
     }
+}
+
+/// A pair given as exactly two numbers: serde's fixed-size arrays ignore extra elements.
+fn exactly_two<'de, D: serde::Deserializer<'de>>(d: D) -> std::result::Result<[f64; 2], D::Error> {
+    use serde::Deserialize;
+    let values = Vec::<f64>::deserialize(d)?;
+    <[f64; 2]>::try_from(values.as_slice())
+        .map_err(|_| serde::de::Error::invalid_length(values.len(), &"exactly two numbers"))
 }
 
 #[cfg(test)]

@@ -80,6 +80,17 @@ pub struct Phase<P> {
     pub action: Action<P>,
 }
 
+impl Phase<f64> {
+    /// The bounds of [`Phase::<Range>::check`] on drawn numbers (a scenario file's phases).
+    pub fn check(&self, name: &str) -> Result<(), String> {
+        // A number is a fixed range: the same serde form, so one set of bounds serves both.
+        let ranges: Phase<Range> = serde_json::to_value(self)
+            .and_then(serde_json::from_value)
+            .map_err(|e| format!("{name}: {e}"))?;
+        ranges.check(name)
+    }
+}
+
 impl Phase<Range> {
     /// Checks every range against physically sensible bounds; `name` locates the phase.
     pub fn check(&self, name: &str) -> Result<(), String> {

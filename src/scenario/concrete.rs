@@ -20,6 +20,10 @@ use crate::scene::{AgentRole, Scene, SceneAgent};
 
 /// Longest simulated window a scenario file may ask for (steps; 10 minutes at 0.5 s).
 pub const MAX_FUTURE_STEPS: usize = 1200;
+/// Most history steps a scenario file may give (the paper's policy sees 5).
+pub const MAX_HISTORY_STEPS: usize = 100;
+/// Simulator steps a scenario may be drawn at (s); the paper's is 0.5.
+const DT_RANGE: std::ops::RangeInclusive<f64> = 0.05..=2.0;
 
 /// The set a concrete scenario belongs to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -194,9 +198,17 @@ impl ConcreteScenario {
     /// Checks of a loaded file: indices in range, history lengths, physical values (vehicle
     /// sizes, finite positions, headings in radians, speeds), and the map's parameters.
     fn check(&self, source: &str) -> Result<()> {
+        if !(1..=MAX_HISTORY_STEPS).contains(&self.history_steps) {
+            return Err(Error::invalid(
+                source,
+                "history_steps",
+                format!("{}: expected 1 to {MAX_HISTORY_STEPS}", self.history_steps),
+            ));
+        }
         let steps = self.history_steps + 1;
         let n = self.agents.len();
-        self.map
+        let od = self
+            .map
             .build()
             .map_err(|e| Error::invalid(source, "map", e.to_string()))?;
         for (i, a) in self.agents.iter().enumerate() {
@@ -228,23 +240,29 @@ impl ConcreteScenario {
                 format!("{} but there are {n} agents", self.target),
             ));
         }
-        for (h, hero) in self.heroes.iter().enumerate() {
-            if hero.agent >= n || hero.target >= n {
+        self.check_heroes(source)?;
+        for (field, list) in [
+            ("reference.collided_agents", &self.reference.collided_agents),
+            ("reference.offroad_agents", &self.reference.offroad_agents),
+        ] {
+            if let Some(bad) = list.iter().find(|&&i| i >= n) {
                 return Err(Error::invalid(
                     source,
-                    format!("heroes[{h}]"),
-                    format!(
-                        "agent {} / target {} but there are {n} agents",
-                        hero.agent, hero.target
-                    ),
+                    field,
+                    format!("agent {bad} but there are {n} agents"),
                 ));
             }
         }
-        if !(self.dt > 0.0 && self.dt.is_finite()) {
+        if !DT_RANGE.contains(&self.dt) {
             return Err(Error::invalid(
                 source,
                 "dt",
-                format!("{}: expected a positive step", self.dt),
+                format!(
+                    "{} s: expected a simulator step of {} to {} s",
+                    self.dt,
+                    DT_RANGE.start(),
+                    DT_RANGE.end()
+                ),
             ));
         }
         // Windows are allocated per step: a corrupt count must be an error, not an abort.
@@ -254,6 +272,51 @@ impl ConcreteScenario {
                 "future_steps",
                 format!("{}: expected 1 to {MAX_FUTURE_STEPS}", self.future_steps),
             ));
+        }
+        // Where the scenario starts: every vehicle on the road, no two overlapping.
+        let map = Map::from_opendrive(&od, source)?;
+        super::sample::check_initial(&map, &self.agents)
+            .map_err(|why| Error::invalid(source, "agents", why))?;
+        Ok(())
+    }
+
+    /// Each hero drives another agent, with phases in the family files' bounds.
+    fn check_heroes(&self, source: &str) -> Result<()> {
+        let n = self.agents.len();
+        for (h, hero) in self.heroes.iter().enumerate() {
+            let place = format!("heroes[{h}]");
+            if hero.agent >= n || hero.target >= n {
+                return Err(Error::invalid(
+                    source,
+                    place,
+                    format!(
+                        "agent {} / target {} but there are {n} agents",
+                        hero.agent, hero.target
+                    ),
+                ));
+            }
+            if hero.agent == hero.target {
+                return Err(Error::invalid(
+                    source,
+                    place,
+                    format!(
+                        "agent {0} targets itself; expected another agent",
+                        hero.agent
+                    ),
+                ));
+            }
+            if hero.phases.is_empty() {
+                return Err(Error::invalid(
+                    source,
+                    place,
+                    "no phases: a hero follows at least one",
+                ));
+            }
+            for (k, phase) in hero.phases.iter().enumerate() {
+                phase
+                    .check(&format!("{place}.phases[{k}]"))
+                    .map_err(|why| Error::invalid(source, format!("{place}.phases[{k}]"), why))?;
+            }
         }
         Ok(())
     }

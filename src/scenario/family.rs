@@ -165,6 +165,33 @@ impl LogicalScenario {
         Self::from_toml_str(&text, &path.display().to_string())
     }
 
+    /// Main lanes named by the target and the heroes exist on the narrowest map the family
+    /// can draw (1 = leftmost).
+    fn check_lane_numbers(&self) -> std::result::Result<(), (String, String)> {
+        let lanes = super::sample::map_with(self, |_, range| range.low())
+            .ok()
+            .and_then(|map| serde_json::to_value(map).ok())
+            .and_then(|v| v.get("lanes").and_then(|l| l.as_u64()))
+            .unwrap_or(u64::MAX) as usize;
+        let named = std::iter::once(("target.lane".to_string(), Some(self.target.lane))).chain(
+            self.heroes
+                .iter()
+                .enumerate()
+                .map(|(h, hero)| (format!("heroes[{h}].lane"), hero.lane)),
+        );
+        for (place, lane) in named {
+            if let Some(LaneRef::Main(k)) = lane
+                && (k == 0 || k > lanes)
+            {
+                return Err((
+                    format!("field `{place}`"),
+                    format!("main lane {k}, but the map has {lanes} (1 = leftmost)"),
+                ));
+            }
+        }
+        Ok(())
+    }
+
     /// Checks what can be checked without drawing: names, ranges, the map template's keys.
     /// Errors are (field, message).
     pub fn validate(&self) -> std::result::Result<(), (String, String)> {
@@ -216,7 +243,29 @@ impl LogicalScenario {
             range
                 .check(&format!("map.{key}"), 0.0, 10_000.0)
                 .map_err(|m| (field(&format!("map.{key}")), m))?;
+            let whole = known.get(key).is_some_and(|v| v.is_u64());
+            if whole && (range.low().fract() != 0.0 || range.high().fract() != 0.0) {
+                return Err((
+                    field(&format!("map.{key}")),
+                    format!("{range}: expected whole numbers"),
+                ));
+            }
         }
+        // Every map the ranges can give builds: try both ends of every range.
+        for (end, pick) in [
+            ("low", Range::low as fn(&Range) -> f64),
+            ("high", Range::high),
+        ] {
+            super::sample::map_with(self, |_, range| pick(range))
+                .and_then(|map| map.build().map(|_| ()).map_err(|e| e.to_string()))
+                .map_err(|why| {
+                    (
+                        field("map"),
+                        format!("with every parameter at the {end} end of its range: {why}"),
+                    )
+                })?;
+        }
+        self.check_lane_numbers()?;
         let t = &self.target;
         t.station
             .check("target.station", 0.0, 10_000.0)

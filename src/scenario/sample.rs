@@ -93,11 +93,21 @@ fn draw_map(
     family: &LogicalScenario,
     sampler: &mut Sampler,
 ) -> std::result::Result<ProceduralMap, String> {
+    map_with(family, |key, range| {
+        sampler.draw(&format!("map.{key}"), range)
+    })
+}
+
+/// The map template with each parameter's value given by `value_of(name, range)`.
+pub(super) fn map_with(
+    family: &LogicalScenario,
+    mut value_of: impl FnMut(&str, &super::range::Range) -> f64,
+) -> std::result::Result<ProceduralMap, String> {
     let preset = ProceduralMap::preset(&family.map.preset).map_err(|e| e.to_string())?;
     let mut value = serde_json::to_value(&preset).map_err(|e| e.to_string())?;
     let object = value.as_object_mut().ok_or("map preset is not an object")?;
     for (key, range) in &family.map.params {
-        let v = sampler.draw(&format!("map.{key}"), range);
+        let v = value_of(key, range);
         if key == "median_width" {
             object.insert(
                 "layout".into(),
@@ -398,7 +408,10 @@ fn plan_background(
 }
 
 /// Every vehicle on the road and no two overlapping, at the current step.
-fn check_initial(map: &Map, agents: &[ScenarioAgent]) -> std::result::Result<(), String> {
+pub(super) fn check_initial(
+    map: &Map,
+    agents: &[ScenarioAgent],
+) -> std::result::Result<(), String> {
     let boxes: Vec<OrientedBox> = agents
         .iter()
         .map(|a| {

@@ -196,6 +196,9 @@ pub struct DiscoveredTerm {
     pub coefficient: f64,
 }
 
+/// Largest |coefficient| of a discovered term in a dynamics file.
+const MAX_COEFFICIENT: f64 = 1e3;
+
 impl DynamicsFile {
     pub fn load(path: &std::path::Path) -> Result<Self> {
         let text = crate::io::read_text(path)?;
@@ -234,16 +237,31 @@ impl DynamicsFile {
                     ),
                 ));
             }
-            if !term.coefficient.is_finite() {
+            // A discovered term adds coefficient x feature to an acceleration (m/s^2) or a
+            // yaw rate; features are O(1) to O(100), so far above 1e3 is no physics.
+            if !(term.coefficient.is_finite() && term.coefficient.abs() <= MAX_COEFFICIENT) {
                 return Err(Error::invalid(
                     source,
                     &place,
-                    format!("coefficient {} is not finite", term.coefficient),
+                    format!(
+                        "coefficient {}: expected a finite value with |coefficient| <= {MAX_COEFFICIENT}",
+                        term.coefficient
+                    ),
                 ));
             }
         }
         for (k, term) in self.terms.iter().enumerate() {
             let place = format!("terms[{k}] ({})", term.effect);
+            if let Some(first) = self.terms[..k].iter().position(|t| t.effect == term.effect) {
+                return Err(Error::invalid(
+                    source,
+                    &place,
+                    format!(
+                        "{} is already terms[{first}]; expected each effect once (two would stack)",
+                        term.effect
+                    ),
+                ));
+            }
             for spec in term.effect.params() {
                 let value = term.params.get(spec.name).ok_or_else(|| {
                     Error::invalid(source, &place, format!("missing parameter `{}`", spec.name))

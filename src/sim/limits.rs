@@ -26,6 +26,33 @@ impl Default for ActionLimits {
     }
 }
 
+impl ActionLimits {
+    /// Physical bounds: braking below 0 down to at most 20 m/s^2, acceleration above 0 up to
+    /// 20 m/s^2, a road-wheel angle above 0 up to 1 rad (57 degrees: larger is a value in
+    /// degrees). The message names the field.
+    pub fn check(&self) -> std::result::Result<(), String> {
+        if !(self.accel_min >= -20.0 && self.accel_min < 0.0) {
+            return Err(format!(
+                "accel_min {}: expected braking in [-20, 0) m/s^2",
+                self.accel_min
+            ));
+        }
+        if !(self.accel_max > 0.0 && self.accel_max <= 20.0) {
+            return Err(format!(
+                "accel_max {}: expected acceleration in (0, 20] m/s^2",
+                self.accel_max
+            ));
+        }
+        if !(self.steer_max > 0.0 && self.steer_max <= 1.0) {
+            return Err(format!(
+                "steer_max {}: expected a road-wheel angle in (0, 1] rad (degrees?)",
+                self.steer_max
+            ));
+        }
+        Ok(())
+    }
+}
+
 /// `hi * tanh(c / hi)` for c >= 0, `lo * tanh(c / lo)` for c < 0 (lo < 0 < hi).
 pub fn soft_clamp(c: Tensor<2>, lo: f64, hi: f64) -> Tensor<2> {
     let upper = c.clone().div_scalar(hi).tanh().mul_scalar(hi);

@@ -18,15 +18,15 @@ fn plot_error(path: &Path, e: impl std::fmt::Display) -> Error {
     Error::InvalidArgument(format!("cannot draw {}: {e}", path.display()))
 }
 
+/// The files [`write_plots`] writes into its folder.
+pub const PLOT_FILES: [&str; 4] = ["regimes.svg", "excess.svg", "hypotheses.svg", "tracks.svg"];
+
 /// Writes `regimes.svg`, `excess.svg`, `hypotheses.svg` and `tracks.svg` into `dir`;
 /// returns their paths.
 pub fn write_plots(dir: &Path, outcome: &Outcome) -> Result<Vec<PathBuf>> {
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     let report = &outcome.report;
-    let regimes = dir.join("regimes.svg");
-    let excess = dir.join("excess.svg");
-    let hypotheses = dir.join("hypotheses.svg");
-    let tracks = dir.join("tracks.svg");
+    let [regimes, excess, hypotheses, tracks] = PLOT_FILES.map(|name| dir.join(name));
     crate::io::atomic_write_with(&regimes, |tmp| {
         draw_regimes(tmp, &report.mismatch, &report.final_model.mismatch)
             .map_err(|e| plot_error(&regimes, e))

@@ -152,6 +152,11 @@ pub fn load_policy(
 pub fn latest(run_dir: &Path) -> Result<Option<PathBuf>> {
     let pointer = run_dir.join("checkpoints").join(LATEST);
     match std::fs::read_to_string(&pointer) {
+        Ok(name) if name.trim().is_empty() => Err(Error::invalid(
+            pointer.display().to_string(),
+            "contents",
+            "empty; expected the name of the newest checkpoint folder (iter-NNNNNN)",
+        )),
         Ok(name) => Ok(Some(run_dir.join("checkpoints").join(name.trim()))),
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
         Err(e) => Err(Error::io(pointer, e)),
@@ -178,6 +183,11 @@ pub fn resume_point(run_dir: &Path, resume: bool) -> Result<Option<PathBuf>> {
         ))),
         (None, false) => Ok(None),
     }
+}
+
+/// Whether `run_dir` holds at least one checkpoint (its `latest` pointer exists).
+pub fn has_checkpoint(run_dir: &Path) -> bool {
+    run_dir.join("checkpoints").join(LATEST).exists()
 }
 
 /// Writes a checkpoint for `state.iteration` and points `latest` at it.

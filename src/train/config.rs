@@ -393,6 +393,10 @@ impl RunConfig {
     }
 }
 
+/// Most scenes or rollouts one batch may hold: far above what fits in memory here (the
+/// paper's PPO batch is 192), low enough that a typo is refused instead of exhausting memory.
+const MAX_BATCH: usize = 4096;
+
 impl TrainConfig {
     /// What identifies a run for `--resume`: the config as TOML without `run.devices` and
     /// `run.backend` (how many workers computed a step, and on which backend, changes results
@@ -417,10 +421,14 @@ impl TrainConfig {
             let base = path.parent().unwrap_or(Path::new("."));
             reference.checkpoint = base.join(&reference.checkpoint);
         }
-        if let Some(dynamics) = config.dynamics.as_mut()
-            && dynamics.is_relative()
-        {
-            *dynamics = path.parent().unwrap_or(Path::new(".")).join(&*dynamics);
+        if let Some(dynamics) = config.dynamics.as_mut() {
+            if dynamics.is_relative() {
+                *dynamics = path.parent().unwrap_or(Path::new(".")).join(&*dynamics);
+            }
+            // Absolute in the run's config.toml, so the run evaluates from any folder.
+            if let Ok(absolute) = dynamics.canonicalize() {
+                *dynamics = absolute;
+            }
         }
         if let Some(curated) = config.data.curated.as_mut()
             && curated.is_relative()
@@ -592,6 +600,44 @@ impl TrainConfig {
         if self.data.max_rollout_steps == Some(0) {
             return fail("data.max_rollout_steps", "expected at least 1 step");
         }
+        // Counts that size tensors or loops: bounded, so a typo is an error, not an abort.
+        for (field, value, max) in [
+            (
+                "imitation.minibatch",
+                Some(self.imitation.minibatch),
+                MAX_BATCH,
+            ),
+            ("ppo.batch", Some(p.batch), MAX_BATCH),
+            ("ppo.epochs", Some(p.epochs), 1_000),
+            ("optimizer.epochs", Some(o.epochs), 100_000),
+            ("optimizer.epoch_scenes", o.epoch_scenes, 10_000_000),
+            ("data.max_rollout_steps", self.data.max_rollout_steps, 1_200),
+            ("run.devices", self.run.devices, 256),
+            ("run.max_iterations", self.run.max_iterations, 100_000_000),
+        ] {
+            if value.is_some_and(|v| v > max) {
+                return fail(field, &format!("expected at most {max}"));
+            }
+        }
+        for (field, value) in [
+            ("data.nominal_limit", self.data.nominal_limit),
+            ("run.max_iterations", self.run.max_iterations),
+        ] {
+            if value == Some(0) {
+                return fail(field, "expected at least 1 (0 would train on nothing)");
+            }
+        }
+        if self.method.uses_ppo() && self.alpha > 0.0 && self.data.longtail_limit == Some(0) {
+            return fail(
+                "data.longtail_limit",
+                "alpha > 0 draws long-tail scenarios; a limit of 0 leaves none (set alpha = 0 or \
+                 raise the limit)",
+            );
+        }
+        if let Err(why) = self.limits.check() {
+            return fail("limits", &why);
+        }
+
         if self.run.devices == Some(0) || self.run.checkpoint_every == 0 {
             return fail(
                 "run.devices",

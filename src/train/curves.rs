@@ -10,7 +10,7 @@ use crate::error::{Error, Result};
 use crate::io::atomic_write;
 
 /// One optimizer step. Losses are per agent-step means (0 where a method has no such term).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct CurveRow {
     pub iteration: usize,
     pub update: usize,
@@ -58,7 +58,7 @@ impl Curves {
 
     /// The rows of `path` up to `iteration`, to continue after a checkpoint.
     pub fn resume(path: PathBuf, iteration: usize) -> Result<Self> {
-        let rows = if path.exists() {
+        let rows: Vec<CurveRow> = if path.exists() {
             read(&path)?
                 .into_iter()
                 .filter(|r| r.iteration < iteration)
@@ -66,6 +66,17 @@ impl Curves {
         } else {
             Vec::new()
         };
+        // Every finished iteration wrote rows: none means the file is not this run's.
+        if iteration > 0 && rows.is_empty() {
+            return Err(Error::invalid(
+                path.display().to_string(),
+                "rows",
+                format!(
+                    "no curve rows before iteration {iteration}, where the checkpoint is; \
+                     expected this run's curves.csv"
+                ),
+            ));
+        }
         Ok(Self { path, rows })
     }
 
@@ -91,6 +102,21 @@ impl Curves {
 /// Reads a curves file; errors name the line.
 pub fn read(path: &Path) -> Result<Vec<CurveRow>> {
     let mut reader = csv::Reader::from_path(path).map_err(|e| csv_error(path, e))?;
+    // The header is the columns `push` writes, so a foreign file is refused even without rows.
+    let header = reader.headers().map_err(|e| csv_error(path, e))?.clone();
+    let expected = columns();
+    if header.iter().ne(expected.iter().map(String::as_str)) {
+        return Err(Error::Parse {
+            source_name: path.display().to_string(),
+            line: 1,
+            column: 0,
+            message: format!(
+                "header is `{}`; expected the training-curve columns `{}`",
+                header.iter().collect::<Vec<_>>().join(","),
+                expected.join(",")
+            ),
+        });
+    }
     reader
         .deserialize()
         .map(|r| r.map_err(|e| csv_error(path, e)))
@@ -105,4 +131,14 @@ fn csv_error(path: &Path, e: csv::Error) -> Error {
         column: 0,
         message: e.to_string(),
     }
+}
+
+/// The column names `push` writes: the header csv gives a serialised row.
+fn columns() -> Vec<String> {
+    let mut writer = csv::Writer::from_writer(Vec::new());
+    let _ = writer.serialize(CurveRow::default());
+    let bytes = writer.into_inner().unwrap_or_default();
+    let text = String::from_utf8_lossy(&bytes);
+    let header = text.lines().next().unwrap_or_default();
+    header.split(',').map(str::to_string).collect()
 }

@@ -72,9 +72,22 @@ enum Command {
     },
 }
 
+/// The command line, with `-1` read as a value on every (sub)command, so that `--index -1`
+/// is refused by that flag's own parser (naming it) rather than taken for an unknown flag.
+fn parse_cli() -> Cli {
+    use clap::{CommandFactory, FromArgMatches};
+    fn allow_negative_numbers(command: clap::Command) -> clap::Command {
+        command
+            .allow_negative_numbers(true)
+            .mut_subcommands(allow_negative_numbers)
+    }
+    let matches = allow_negative_numbers(Cli::command()).get_matches();
+    Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit())
+}
+
 fn main() -> ExitCode {
     rtr::allocator::tune_for_tensors();
-    match run(Cli::parse()) {
+    match run(parse_cli()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e}");

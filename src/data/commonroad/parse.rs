@@ -143,11 +143,13 @@ impl<'a> Reader<'a> {
                 "lanelet" => lanelets.push(self.lanelet(node, &signs)?),
                 "dynamicObstacle" => {
                     if let Some(o) = self.obstacle(node, &mut skip)? {
+                        self.check_motion(node, &o, time_step)?;
                         vehicles.push(o);
                     }
                 }
                 "obstacle" if self.child_text(node, "role") == Some("dynamic") => {
                     if let Some(o) = self.obstacle(node, &mut skip)? {
+                        self.check_motion(node, &o, time_step)?;
                         vehicles.push(o);
                     }
                 }
@@ -161,6 +163,26 @@ impl<'a> Reader<'a> {
             lanelets,
             vehicles,
             skipped,
+        })
+    }
+
+    /// An obstacle's velocities and orientations agree with how its positions move (so
+    /// km/h or degrees are refused, not simulated).
+    fn check_motion(&self, node: Node, o: &Obstacle, time_step: f64) -> Result<()> {
+        let column = |f: fn(&ObstacleState) -> f64| o.states.iter().map(f).collect::<Vec<_>>();
+        crate::data::motion::check(
+            time_step,
+            &column(|s| s.x),
+            &column(|s| s.y),
+            &column(|s| s.orientation),
+            &column(|s| s.velocity),
+        )
+        .map_err(|mismatch| {
+            let field = match mismatch.column() {
+                "speed" => "velocity",
+                _ => "orientation",
+            };
+            self.err(node, format!("obstacle {}: <{field}>: {mismatch}", o.id))
         })
     }
 

@@ -65,16 +65,24 @@ impl MapSource {
     }
 
     fn procedural_spec(&self, spec: &str) -> Result<ProceduralMap> {
-        if spec.trim_start().starts_with('{') {
-            serde_json::from_str(spec).map_err(|e| Error::Parse {
-                source_name: "--procedural".into(),
-                line: e.line(),
-                column: e.column(),
-                message: e.to_string(),
-            })
-        } else {
-            ProceduralMap::preset(spec)
+        if !spec.trim_start().starts_with('{') {
+            return ProceduralMap::preset(spec);
         }
+        let value: serde_json::Value = serde_json::from_str(spec).map_err(|e| Error::Parse {
+            source_name: "--procedural".into(),
+            line: e.line(),
+            column: e.column(),
+            message: e.to_string(),
+        })?;
+        // A tagged enum's errors carry no position; name the field by comparing with the
+        // preset of the same kind instead.
+        serde_json::from_value(value.clone()).map_err(|e| {
+            Error::invalid(
+                "--procedural",
+                mistyped_field(&value).map_or("JSON".into(), |f| format!("field `{f}`")),
+                e.to_string(),
+            )
+        })
     }
 }
 
@@ -103,4 +111,30 @@ pub fn image_targets(out: &Path, opts: &RenderOptions) -> Result<Vec<PathBuf>> {
 /// `--width` of a picture, in pixels.
 pub fn image_width() -> impl clap::builder::TypedValueParser<Value = u32> {
     clap::value_parser!(u32).range(16..=i64::from(MAX_WIDTH_PX))
+}
+
+/// The first field of a `--procedural` object whose JSON type differs from the same field of
+/// the preset of its `kind` (a whole number where the preset has one, any number where it has
+/// a number, an object where it has one).
+fn mistyped_field(value: &serde_json::Value) -> Option<String> {
+    let object = value.as_object()?;
+    let Some(Ok(preset)) = object
+        .get("kind")
+        .and_then(|k| k.as_str())
+        .map(ProceduralMap::preset)
+    else {
+        return Some("kind".into());
+    };
+    let preset = serde_json::to_value(preset).ok()?;
+    object.iter().find_map(|(key, given)| {
+        let fits = match preset.get(key) {
+            Some(template) if template.is_u64() => given.is_u64(),
+            Some(template) if template.is_number() => given.is_number(),
+            Some(template) if template.is_object() => given.is_object(),
+            Some(_) => true,
+            // `layout` is optional in the presets that have one.
+            None => key == "layout",
+        };
+        (!fits).then(|| key.clone())
+    })
 }

@@ -122,6 +122,6 @@ pub fn run(command: BenchCommand) -> Result<()> {
 /// model benchmark.
 fn bench_inputs(args: &BenchArgs) -> Result<(Arc<Map>, usize)> {
     let dir = args.data.data.clone().unwrap_or_else(a9::default_dir);
-    let map = Arc::new(Map::from_xodr_file(&dir.join(a9::STATIC_FILE))?);
+    let map = Arc::new(a9::load_map(&dir)?);
     Ok((map, args.repetitions))
 }

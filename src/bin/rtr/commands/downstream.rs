@@ -39,6 +39,13 @@ pub struct DownstreamArgs {
 }
 
 pub fn run(args: DownstreamArgs) -> Result<()> {
+    if args.checkpoints.is_empty() && !args.idm {
+        return Err(Error::InvalidArgument(
+            "nothing to compare with the real logs: pass --checkpoint DIR (repeatable) and/or \
+             --idm"
+                .into(),
+        ));
+    }
     if let Some(out) = &args.out {
         check_output(out, OutputKind::Folder, "--out")?;
     }

@@ -53,6 +53,7 @@ pub fn run(args: Sim2RealArgs) -> Result<()> {
         )));
     }
     check_output(&args.report, OutputKind::File, "--report")?;
+    check_distinct_outputs(&args)?;
     if let Some(dir) = &args.plots {
         check_output(dir, OutputKind::Folder, "--plots")?;
     }
@@ -118,6 +119,38 @@ pub fn run(args: Sim2RealArgs) -> Result<()> {
             report.dynamics().terms.len(),
             path.display()
         );
+    }
+    Ok(())
+}
+
+/// The report, the dynamics file and the plots are different files: one written over another
+/// would lose it.
+fn check_distinct_outputs(args: &Sim2RealArgs) -> Result<()> {
+    let same = |a: &std::path::Path, b: &std::path::Path| {
+        a == b || matches!((a.canonicalize(), b.canonicalize()), (Ok(x), Ok(y)) if x == y)
+    };
+    if let Some(dynamics) = &args.save_dynamics
+        && same(dynamics, &args.report)
+    {
+        return Err(Error::InvalidArgument(format!(
+            "--save-dynamics and --report are both {}; expected two different files",
+            args.report.display()
+        )));
+    }
+    if let Some(dir) = &args.plots {
+        for path in std::iter::once(&args.report).chain(&args.save_dynamics) {
+            if path.parent().is_some_and(|p| same(p, dir))
+                && path
+                    .file_name()
+                    .is_some_and(|n| rtr::sim2real::plots::PLOT_FILES.iter().any(|p| n == *p))
+            {
+                return Err(Error::InvalidArgument(format!(
+                    "{} is one of the plots --plots writes ({}); expected another name",
+                    path.display(),
+                    rtr::sim2real::plots::PLOT_FILES.join(", ")
+                )));
+            }
+        }
     }
     Ok(())
 }

@@ -1,6 +1,6 @@
 //! `rtr train`: train a policy from a run file into a run folder.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use clap::Args;
 
@@ -34,11 +34,27 @@ pub struct TrainArgs {
 pub fn run(args: TrainArgs) -> Result<()> {
     let mut config = rtr::train::TrainConfig::from_toml_file(&args.config)?;
     if let Some(path) = &args.dynamics {
-        config.dynamics = Some(path.clone());
+        // Absolute in the run's config.toml, so the run evaluates from any folder.
+        config.dynamics = Some(path.canonicalize().unwrap_or_else(|_| path.clone()));
     }
     if let Some(dir) = &args.scenarios {
+        if !dir.is_dir() {
+            return Err(Error::InvalidArgument(format!(
+                "--scenarios {}: no such folder; expected the train/ folder of `rtr scenarios generate`",
+                dir.display()
+            )));
+        }
         config.data.longtail_dir = Some(dir.clone());
         config.validate(&format!("{} with --scenarios", args.config.display()))?;
+    }
+    // Checked here, not with the file: a finished run's config.toml loads in any build.
+    if !config.run.backend.is_compiled() {
+        let name = config.run.backend;
+        return Err(Error::invalid(
+            args.config.display().to_string(),
+            "field `run.backend`",
+            format!("rtr was built without `{name}`: rebuild with `--features {name}`"),
+        ));
     }
     let out = args.out.clone().unwrap_or_else(|| {
         let stem = args
@@ -58,7 +74,13 @@ pub fn run(args: TrainArgs) -> Result<()> {
         .map_err(|e| Error::InvalidArgument(format!("progress template: {e}")))?,
     );
     progress.set_prefix(method.to_string());
-    let summary = rtr::train::session::train(config, &dataset, &out, args.resume, &progress)?;
+    let created = !out.exists();
+    let summary = rtr::train::session::train(config, &dataset, &out, args.resume, &progress)
+        .inspect_err(|_| {
+            if !args.resume {
+                remove_unfinished_run(&out, created);
+            }
+        })?;
     progress.finish();
     println!(
         "{method}: {} iterations, {} optimizer steps; checkpoint {}; curves {}",
@@ -82,4 +104,19 @@ pub fn run(args: TrainArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// A fresh run that failed before its first checkpoint (bad data found late, divergence at the
+/// first step) leaves nothing: the folder if this run created it, else the files it wrote.
+fn remove_unfinished_run(out: &Path, created: bool) {
+    if rtr::train::checkpoint::has_checkpoint(out) {
+        return;
+    }
+    if created {
+        let _ = std::fs::remove_dir_all(out);
+    } else {
+        for name in ["config.toml", "curves.csv"] {
+            let _ = std::fs::remove_file(out.join(name));
+        }
+    }
 }
