@@ -330,3 +330,23 @@ fn family_maps_and_lanes_are_checked_before_drawing() {
         &["f.toml", "target.lane", "main lane 9"],
     );
 }
+
+// ---- recordings ----
+
+/// A valid 1 kHz log (float timestamps stepping 0.000999...) loads, and sim2real thins it to
+/// 100 Hz (every 10th sample) instead of simulating a thousand steps per second.
+#[test]
+fn a_1khz_recording_loads_and_thins_to_100_hz() {
+    let mut text = String::from("track_id,t,x,y,heading,speed,accel_cmd,steer_cmd\n");
+    for i in 0..3000 {
+        let t = i as f64 * 0.001;
+        text.push_str(&format!("1,{t},{},0,0,15,0,0\n", 15.0 * t));
+    }
+    let recordings = rtr::data::Recordings::parse("1khz.csv", &text).expect("a 1 kHz log loads");
+    let track = &recordings.tracks[0];
+    assert!((track.period - 0.001).abs() < 1e-9);
+    let thinned = track.decimated(10);
+    assert_eq!(thinned.len(), 300);
+    assert!((thinned.period - 0.01).abs() < 1e-9);
+    assert_eq!(thinned.t[1], track.t[10]);
+}

@@ -126,6 +126,25 @@ impl RecordedTrack {
         self.t.is_empty()
     }
 
+    /// Every `k`-th sample (k >= 1): the same track at a `k` times longer period.
+    pub fn decimated(&self, k: usize) -> Self {
+        let k = k.max(1);
+        let every = |v: &[f64]| v.iter().step_by(k).copied().collect::<Vec<f64>>();
+        Self {
+            id: self.id.clone(),
+            first_line: self.first_line,
+            period: self.period * k as f64,
+            t: every(&self.t),
+            x: every(&self.x),
+            y: every(&self.y),
+            heading: every(&self.heading),
+            speed: every(&self.speed),
+            accel_cmd: every(&self.accel_cmd),
+            steer_cmd: every(&self.steer_cmd),
+            wheelbase: self.wheelbase,
+        }
+    }
+
     /// Time from the first to the last sample (s); 0 with fewer than two samples.
     pub fn duration(&self) -> f64 {
         match (self.t.first(), self.t.last()) {

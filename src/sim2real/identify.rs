@@ -93,6 +93,24 @@ struct Split {
     short: Vec<Window>,
 }
 
+/// Shortest simulation step sim2real fits at (s): every effect in the catalogue acts over
+/// tens of milliseconds or more, and a 1 kHz log simulated step by step over a 5 s horizon
+/// costs ten times a 100 Hz one for no information.
+const MIN_SIM_PERIOD: f64 = 0.01;
+
+/// Tracks sampled faster than 100 Hz, thinned to every k-th sample (k the smallest that
+/// reaches 100 Hz or slower); slower tracks as they are.
+fn at_most_100_hz(recordings: &Recordings) -> Recordings {
+    let mut thinned = recordings.clone();
+    for track in &mut thinned.tracks {
+        let k = (MIN_SIM_PERIOD / track.period * (1.0 - 1e-6)).ceil() as usize;
+        if k > 1 {
+            *track = track.decimated(k);
+        }
+    }
+    thinned
+}
+
 /// The horizons must hold whole sampling periods of every track (a window of fewer than 2
 /// steps compares nothing).
 fn check_horizons(recordings: &Recordings, options: &Sim2RealOptions) -> Result<()> {
@@ -109,7 +127,8 @@ fn check_horizons(recordings: &Recordings, options: &Sim2RealOptions) -> Result<
             format!("track `{}` (line {})", t.id, t.first_line),
             format!(
                 "sampled every {} s, but the {} s horizon needs at least 2 samples: expected \
-                 a sampling period of at most {} s (or a longer --horizon)",
+                 a sampling period of at most {} s (or a longer --horizon; timestamps in \
+                 milliseconds?)",
                 t.period,
                 shortest,
                 shortest / 2.0
@@ -188,6 +207,7 @@ pub fn identify(
 ) -> Result<Outcome> {
     let plain = Backend::NdArray.device(false)?;
     let autodiff = Backend::NdArray.device(true)?;
+    let recordings = &at_most_100_hz(recordings);
     let split = split(recordings, options)?;
     let (train_b, held_b, short_b) = (
         batches(&split.train, &plain),
