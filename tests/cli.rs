@@ -364,18 +364,21 @@ fn eval_prints_the_table_row_and_writes_the_documented_json() {
         "{}",
         String::from_utf8_lossy(&trained.stderr)
     );
+    let eval_into = |out: &std::path::Path| {
+        rtr(&[
+            "eval",
+            "--checkpoint",
+            run.to_str().unwrap(),
+            "--set",
+            "nominal",
+            "--resamples",
+            "100",
+            "--out",
+            out.to_str().unwrap(),
+        ])
+    };
     let out_dir = dir.path().join("eval");
-    let out = rtr(&[
-        "eval",
-        "--checkpoint",
-        run.to_str().unwrap(),
-        "--set",
-        "nominal",
-        "--resamples",
-        "100",
-        "--out",
-        out_dir.to_str().unwrap(),
-    ]);
+    let out = eval_into(&out_dir);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
         out.status.success(),
@@ -432,17 +435,7 @@ fn eval_prints_the_table_row_and_writes_the_documented_json() {
     let blocked = dir.path().join("blocked");
     std::fs::create_dir(&blocked).expect("mkdir");
     std::fs::write(blocked.join("figures"), "x").expect("write");
-    let out = rtr(&[
-        "eval",
-        "--checkpoint",
-        run.to_str().unwrap(),
-        "--set",
-        "nominal",
-        "--resamples",
-        "100",
-        "--out",
-        blocked.to_str().unwrap(),
-    ]);
+    let out = eval_into(&blocked);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("figures"), "{err}");
     assert_eq!(entries(&blocked), ["figures"], "nothing else was written");
