@@ -649,8 +649,8 @@ impl Ctx<'_, '_> {
             return Err(self.err(
                 plan_view,
                 format!(
-                    "road {}: the geometries end at s={end} but the road is {} m long; expected \
-                     them to cover the road",
+                    "road {}: the <geometry> elements end at s={end} but the road is {} m long; \
+                     expected them to cover the road",
                     road.id, road.length
                 ),
             ));

@@ -421,11 +421,11 @@ pub(super) fn check_initial(
         .collect();
     for (i, b) in boxes.iter().enumerate() {
         if map.box_on_road(b) != BoxOnRoad::OnRoad {
-            return Err(format!("agent {i} starts off the road"));
+            return Err(format!("agents[{i}] starts off the road"));
         }
         for (j, other) in boxes.iter().enumerate().skip(i + 1) {
             if b.overlaps(other) {
-                return Err(format!("agents {i} and {j} start overlapping"));
+                return Err(format!("agents[{i}] and agents[{j}] start overlapping"));
             }
         }
     }

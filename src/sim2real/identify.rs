@@ -124,7 +124,7 @@ fn check_horizons(recordings: &Recordings, options: &Sim2RealOptions) -> Result<
     match recordings.tracks.iter().find(|t| 2.0 * t.period > shortest) {
         Some(t) => Err(Error::invalid(
             &recordings.source,
-            format!("track `{}` (line {})", t.id, t.first_line),
+            format!("track `{}` (line {}), column `t`", t.id, t.first_line),
             format!(
                 "sampled every {} s, but the {} s horizon needs at least 2 samples: expected \
                  a sampling period of at most {} s (or a longer --horizon; timestamps in \

@@ -172,8 +172,8 @@ pub fn load_commonroad(
     let limit = default_speed_limit.unwrap_or(DEFAULT_SPEED_LIMIT);
     if !(limit > 0.0 && limit <= MAX_SPEED) {
         return Err(Error::InvalidArgument(format!(
-            "--commonroad-speed-limit (the CommonRoad lanes' default limit) {limit} m/s: \
-             expected a limit in (0, {MAX_SPEED}] m/s"
+            "--commonroad-speed-limit {limit} m/s: expected a default speed limit for the \
+             CommonRoad lanes in (0, {MAX_SPEED}] m/s"
         )));
     }
     let mut clips = Vec::new();

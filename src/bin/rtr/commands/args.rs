@@ -135,6 +135,9 @@ fn mistyped_field(value: &serde_json::Value) -> Option<String> {
             // `layout` is optional in the presets that have one.
             None => key == "layout",
         };
-        (!fits).then(|| key.clone())
+        // A layout object of the right shape may still name an unknown layout type.
+        let bad_layout =
+            key == "layout" && serde_json::from_value::<rtr::map::Layout>(given.clone()).is_err();
+        (!fits || bad_layout).then(|| key.clone())
     })
 }
