@@ -629,7 +629,7 @@ impl Ctx<'_, '_> {
     }
 
     /// The road's geometries, sorted, follow one another: each starts where the previous one
-    /// ends, and the last ends at the road's length (within [`CHAIN_SLACK`]).
+    /// ends, and the last ends at the road's length (within [`chain_slack`]).
     fn check_plan_view(&self, plan_view: Node, road: &Road) -> Result<()> {
         let mut end = 0.0;
         for g in &road.geometries {

@@ -7,8 +7,8 @@
 //! fuses it, so this does by hand: forward is one vectorisable pass that keeps each channel's
 //! winning neighbour (`[B, R, C]` as i32), backward writes the output gradient straight to the
 //! winners. It routes gradient exactly as the composed op does (to the single winner, nothing to
-//! the empty rows that output 0); `tests/backends.rs` checks it against NdArray and finite
-//! differences.
+//! the empty rows that output 0); `tests/backends.rs` checks outputs and gradients against
+//! NdArray's composed path, which `tests/gradients.rs` checks against finite differences.
 
 use burn::backend::autodiff::checkpoint::{base::Checkpointer, strategy::CheckpointStrategy};
 use burn::backend::autodiff::grads::Gradients;

@@ -251,7 +251,8 @@ impl LogicalScenario {
                 ));
             }
         }
-        // Every map the ranges can give builds: try both ends of every range.
+        // The maps at the extremes build: every parameter at its low end, then every one at
+        // its high end (a cheap check of the corners that fail first, not every combination).
         for (end, pick) in [
             ("low", Range::low as fn(&Range) -> f64),
             ("high", Range::high),

@@ -98,12 +98,18 @@ struct Split {
 /// costs ten times a 100 Hz one for no information.
 const MIN_SIM_PERIOD: f64 = 0.01;
 
-/// Tracks sampled faster than 100 Hz, thinned to every k-th sample (k the smallest that
-/// reaches 100 Hz or slower); slower tracks as they are.
+/// Every how many samples a track sampled every `period` s is fitted: the smallest k that
+/// reaches 100 Hz or slower (1 for tracks at 100 Hz or slower).
+pub fn thinning(period: f64) -> usize {
+    ((MIN_SIM_PERIOD / period * (1.0 - 1e-6)).ceil() as usize).max(1)
+}
+
+/// Tracks sampled faster than 100 Hz, thinned to every k-th sample ([`thinning`]); slower
+/// tracks as they are.
 fn at_most_100_hz(recordings: &Recordings) -> Recordings {
     let mut thinned = recordings.clone();
     for track in &mut thinned.tracks {
-        let k = (MIN_SIM_PERIOD / track.period * (1.0 - 1e-6)).ceil() as usize;
+        let k = thinning(track.period);
         if k > 1 {
             *track = track.decimated(k);
         }

@@ -23,5 +23,5 @@ pub mod windows;
 
 pub use crate::sim::catalogue::{DynamicsFile, Effect, FittedTerm};
 pub use generator::{GeneratorConfig, SensorNoise, Uncatalogued, generate};
-pub use identify::{Outcome, Sim2RealOptions, identify};
+pub use identify::{Outcome, Sim2RealOptions, identify, thinning};
 pub use report::Report;

@@ -410,6 +410,41 @@ impl TrainConfig {
             .map_err(|e| Error::InvalidArgument(format!("config does not serialise: {e}")))
     }
 
+    /// Where `given` differs from this run's config in what `--resume` compares
+    /// ([`Self::identity_toml`]): the first setting as `key: value in the run, value now`, or
+    /// `None` when they agree.
+    pub fn identity_difference(&self, given: &TrainConfig) -> Result<Option<String>> {
+        if self.identity_toml()? == given.identity_toml()? {
+            return Ok(None);
+        }
+        let flat = |c: &TrainConfig| -> Result<Vec<(String, String)>> {
+            let text = c.identity_toml()?;
+            let value: toml::Value = toml::from_str(&text)
+                .map_err(|e| Error::InvalidArgument(format!("config does not read back: {e}")))?;
+            let mut out = Vec::new();
+            flatten_toml("", &value, &mut out);
+            Ok(out)
+        };
+        let (run, now) = (flat(self)?, flat(given)?);
+        let lookup = |list: &[(String, String)], key: &str| {
+            list.iter()
+                .find(|(k, _)| k == key)
+                .map_or_else(|| "unset".to_string(), |(_, v)| v.clone())
+        };
+        Ok(run
+            .iter()
+            .chain(&now)
+            .map(|(key, _)| key)
+            .find(|key| lookup(&run, key) != lookup(&now, key))
+            .map(|key| {
+                format!(
+                    "{key}: {} in the run, {} now",
+                    lookup(&run, key),
+                    lookup(&now, key)
+                )
+            }))
+    }
+
     /// Reads and validates a run file; a relative reference checkpoint is resolved against the
     /// file's folder.
     pub fn from_toml_file(path: &Path) -> Result<Self> {
@@ -648,6 +683,28 @@ impl TrainConfig {
     }
 }
 
+/// Every leaf of `value` as (`dotted.key`, value), arrays indexed (`data.commonroad[0].path`).
+fn flatten_toml(prefix: &str, value: &toml::Value, out: &mut Vec<(String, String)>) {
+    match value {
+        toml::Value::Table(table) => {
+            for (key, inner) in table {
+                let key = if prefix.is_empty() {
+                    key.clone()
+                } else {
+                    format!("{prefix}.{key}")
+                };
+                flatten_toml(&key, inner, out);
+            }
+        }
+        toml::Value::Array(items) if items.iter().any(|v| v.is_table()) => {
+            for (i, inner) in items.iter().enumerate() {
+                flatten_toml(&format!("{prefix}[{i}]"), inner, out);
+            }
+        }
+        leaf => out.push((prefix.to_string(), leaf.to_string())),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -682,6 +739,10 @@ mod tests {
         let identity = |c: &TrainConfig| c.identity_toml().expect("serialises");
         assert_eq!(identity(&base), identity(&flex));
         assert_ne!(identity(&base), identity(&other));
+        assert_eq!(base.identity_difference(&flex).expect("compares"), None);
+        // --resume names what differs, so the user knows which file or flag to fix.
+        let difference = base.identity_difference(&other).expect("compares");
+        assert_eq!(difference.as_deref(), Some("seed: 2023 in the run, 7 now"));
     }
 
     #[test]

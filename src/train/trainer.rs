@@ -191,16 +191,16 @@ impl<'d> Trainer<'d> {
                     optimizer(&config),
                     optimizer(&config),
                 )?;
-                let stored = TrainConfig::from_toml_str(&c.state.config_toml, "checkpoint")
-                    .and_then(|stored| stored.identity_toml())
-                    .unwrap_or_default();
-                let given = config.identity_toml().unwrap_or_default();
-                if stored != given {
+                let stored = TrainConfig::from_toml_str(&c.state.config_toml, "checkpoint");
+                let difference = match &stored {
+                    Ok(stored) => stored.identity_difference(&config)?,
+                    Err(e) => Some(format!("its stored config does not load: {e}")),
+                };
+                if let Some(difference) = difference {
                     return Err(Error::InvalidArgument(format!(
-                        "{}: the run there was made with another config ({}); resume with the \
-                         same file and flags, or start a new --out folder",
+                        "{}: the run there was made with another config ({difference}); resume \
+                         with the same file and flags, or start a new --out folder",
                         run_dir.display(),
-                        config_difference(&stored, &given)
                     )));
                 }
                 check_position(&c.state, &dir, &config, data)?;
@@ -822,35 +822,4 @@ fn check_position(
 fn rollout_steps(part: &Part, cap: Option<usize>) -> usize {
     let future = part.scenes.first().map_or(0, |s| s.future_steps);
     cap.map_or(future, |c| c.min(future))
-}
-
-/// The first setting where two run configs (TOML) differ, as `key: stored -> given`.
-fn config_difference(stored: &str, given: &str) -> String {
-    let flat = |text: &str| -> Vec<(String, String)> {
-        let mut out = Vec::new();
-        let mut section = String::new();
-        for line in text.lines().map(str::trim).filter(|l| !l.is_empty()) {
-            if line.starts_with('[') {
-                section = line.trim_matches(|c| c == '[' || c == ']').to_string() + ".";
-            } else if let Some((key, value)) = line.split_once('=') {
-                out.push((format!("{section}{}", key.trim()), value.trim().to_string()));
-            }
-        }
-        out
-    };
-    let (a, b) = (flat(stored), flat(given));
-    let value = |list: &[(String, String)], key: &str| {
-        list.iter().find(|(k, _)| k == key).map(|(_, v)| v.clone())
-    };
-    a.iter()
-        .map(|(k, _)| k)
-        .chain(b.iter().map(|(k, _)| k))
-        .find_map(|key| {
-            let (x, y) = (value(&a, key), value(&b, key));
-            (x != y).then(|| {
-                let show = |v: Option<String>| v.unwrap_or_else(|| "unset".into());
-                format!("{key}: {} in the run, {} now", show(x), show(y))
-            })
-        })
-        .unwrap_or_else(|| "the stored config does not parse".into())
 }

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use clap::Args;
 
 use rtr::io::{OutputKind, StagedFolder, check_output};
-use rtr::sim2real::{Sim2RealOptions, a9::a9_recordings, identify, plots::write_plots};
+use rtr::sim2real::{Sim2RealOptions, a9::a9_recordings, identify, plots::write_plots, thinning};
 use rtr::{Error, Result};
 
 use super::args::{DataArgs, count};
@@ -67,6 +67,15 @@ pub fn run(args: Sim2RealArgs) -> Result<()> {
             true,
         ),
     };
+    if let Some(fast) = recordings.tracks.iter().find(|t| thinning(t.period) > 1) {
+        println!(
+            "note: track `{}` is sampled every {:.4} s; tracks faster than 100 Hz are fitted on \
+             one sample in {}",
+            fast.id,
+            fast.period,
+            thinning(fast.period)
+        );
+    }
     let mut options = Sim2RealOptions {
         horizon_s: args.horizon,
         seed: args.seed,
