@@ -6,7 +6,10 @@
 //! The recording is sampled once per `period_s`; each vehicle present then is projected on its
 //! nearest lane. Lanes are ranked from the right (0 = rightmost, the slow lane with most
 //! trucks), which carries over to maps with other lane counts. A follower's headway is its
-//! bumper-to-bumper gap to the next vehicle ahead on the same lane divided by its speed.
+//! bumper-to-bumper gap to the next vehicle ahead on the same lane divided by its speed; its
+//! closing rate is how fast it closes that gap relative to the gap (speed difference / gap,
+//! the inverse time to collision), which ties a follower's speed to its leader's: in real
+//! traffic a fast car does not keep its speed a few seconds behind a slow truck.
 //! Gaps are bounded by the recorded stretch (266 m on the A9), so very long free-flow gaps are
 //! under-represented.
 
@@ -33,6 +36,9 @@ pub struct LaneTraffic {
     pub vehicles: Vec<VehicleSample>,
     /// Time headways of followers (s), sorted.
     pub headways: Vec<f64>,
+    /// Closing rates of followers (1/s): (own speed - leader's speed) / gap, sorted; negative
+    /// where the gap opens.
+    pub closing_rates: Vec<f64>,
 }
 
 /// Per-lane-rank statistics of a recording (index 0 = rightmost lane).
@@ -90,13 +96,16 @@ impl TrafficStatistics {
                 }
                 let gap = leader.1 - follower.1 - 0.5 * (leader.3 + follower.3);
                 if gap > 0.0 {
-                    lanes[follower.4].headways.push(gap / follower.2);
+                    let lane = &mut lanes[follower.4];
+                    lane.headways.push(gap / follower.2);
+                    lane.closing_rates.push((follower.2 - leader.2) / gap);
                 }
             }
         }
         for lane in &mut lanes {
             lane.vehicles.sort_by(|a, b| a.speed.total_cmp(&b.speed));
             lane.headways.sort_by(f64::total_cmp);
+            lane.closing_rates.sort_by(f64::total_cmp);
         }
         TrafficStatistics { period_s, lanes }
     }
@@ -123,6 +132,12 @@ impl LaneTraffic {
     /// A time headway (s) drawn from the quantile band `[lo, hi]`.
     pub fn draw_headway(&self, rng: &mut impl Rng, band: [f64; 2]) -> f64 {
         at_quantile(&self.headways, rng.random_range(band[0]..=band[1]))
+    }
+
+    /// A closing rate (1/s, see [`LaneTraffic::closing_rates`]) drawn from the whole recorded
+    /// distribution.
+    pub fn draw_closing_rate(&self, rng: &mut impl Rng) -> f64 {
+        at_quantile(&self.closing_rates, rng.random_range(0.0..=1.0))
     }
 
     /// The vehicle at speed quantile `u`.

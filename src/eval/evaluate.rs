@@ -13,6 +13,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::bootstrap::{Additive, Estimate, estimate, resampled_totals, total};
+use super::collisions::{CollisionBreakdown, FirstCollision, first_collisions};
 use super::metrics::{Metric, SceneTally};
 use super::plots::simulated_scene;
 use super::policy::EvalPolicy;
@@ -109,11 +110,30 @@ pub fn evaluate_tallies(
     device: &burn::prelude::Device,
     config: &EvalConfig,
 ) -> Result<Vec<SceneTally>> {
+    Ok(evaluate_scenes(policy, dynamics, set, device, config)?
+        .into_iter()
+        .map(|(tally, _)| tally)
+        .collect())
+}
+
+/// Per scene, in scene order: its tally and its controlled agents' first collisions, from one
+/// deterministic rollout.
+fn evaluate_scenes(
+    policy: &dyn EvalPolicy,
+    dynamics: &Dynamics,
+    set: &EvalScenes,
+    device: &burn::prelude::Device,
+    config: &EvalConfig,
+) -> Result<Vec<(SceneTally, Vec<FirstCollision>)>> {
     per_scene(set, config, |caches, _, group| {
         let (batch, out) = rollout_group(policy, dynamics, set, group, device, caches, None)?;
         let scenes: Vec<&Scene> = group.iter().map(|&k| &set.scenes[k]).collect();
         let fde_step = (config.fde_horizon_s / batch.dt).round() as usize;
-        tally_rollout(&scenes, &out, fde_step, set.set.has_logs())
+        let tallies = tally_rollout(&scenes, &out, fde_step, set.set.has_logs())?;
+        Ok(tallies
+            .into_iter()
+            .zip(first_collisions(&scenes, &out, batch.dt))
+            .collect())
     })
 }
 
@@ -182,6 +202,8 @@ pub struct SetResult {
     /// The WOSAC-style realism score: kinematic, interactive, map and composite, where
     /// computed.
     pub realism: Option<[Option<Estimate>; 4]>,
+    /// Whom the agents' first collisions were with, where computed.
+    pub collisions: Option<CollisionBreakdown>,
 }
 
 impl SetResult {
@@ -211,6 +233,7 @@ pub fn summarise(set: EvalSet, tallies: &[SceneTally], config: &EvalConfig) -> S
         metrics,
         total: full,
         realism: None,
+        collisions: None,
     }
 }
 
@@ -229,8 +252,15 @@ pub fn evaluate(
     device: &burn::prelude::Device,
     config: &EvalConfig,
 ) -> Result<SetResult> {
-    let tallies = evaluate_tallies(policy, dynamics, set, device, config)?;
+    let (tallies, collisions): (Vec<SceneTally>, Vec<Vec<FirstCollision>>) =
+        evaluate_scenes(policy, dynamics, set, device, config)?
+            .into_iter()
+            .unzip();
     let mut result = summarise(set.set, &tallies, config);
+    result.collisions = Some(CollisionBreakdown {
+        agents: result.agents,
+        collisions: collisions.into_iter().flatten().collect(),
+    });
     if set.set.has_logs() && config.realism_samples > 0 {
         let realism = realism_tallies(policy, dynamics, set, device, config)?;
         result.realism = Some(summarise_realism(&realism, config));

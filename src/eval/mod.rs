@@ -13,6 +13,7 @@
 //! - [`downstream`]: predictors trained on each policy's simulated data, scored on real data.
 
 pub mod bootstrap;
+pub mod collisions;
 pub mod curate;
 pub mod downstream;
 pub mod evaluate;

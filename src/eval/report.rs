@@ -6,6 +6,7 @@
 use serde_json::{Map, Value, json};
 
 use super::bootstrap::Estimate;
+use super::collisions::{Contact, ROLES};
 use super::evaluate::SetResult;
 use super::metrics::Metric;
 use super::sets::EvalSet;
@@ -43,6 +44,9 @@ pub fn set_json(r: &SetResult) -> Value {
         let e = r.get(m);
         o.insert(m.key(), json!(e.map(|e| e.value)));
         o.insert(format!("{}_ci", m.key()), json!(e.map(|e| e.ci)));
+    }
+    if let Some(c) = &r.collisions {
+        o.insert("first_collision_pct".into(), c.json());
     }
     if let Some(realism) = &r.realism {
         let names = [
@@ -162,6 +166,42 @@ pub fn markdown_table(methods: &[MethodResult], sets: &[EvalSet]) -> String {
     out
 }
 
+/// Whom each method's agents first collided with, per set (percent of agents; the sides are in
+/// the colliding agent's frame: ahead = it drove into the other, behind = the other drove into
+/// it), and how many had left the road before. Empty where no set has the breakdown.
+pub fn collision_table(methods: &[MethodResult], sets: &[EvalSet]) -> String {
+    let mut rows = String::new();
+    for &set in sets {
+        for m in methods {
+            let Some(c) = m.set(set).and_then(|r| r.collisions.as_ref()) else {
+                continue;
+            };
+            rows.push_str(&format!("| {} | {} |", set.name(), m.method));
+            for (role, _) in ROLES {
+                for side in Contact::ALL {
+                    rows.push_str(&format!(" {:.1} |", c.share(role, side)));
+                }
+            }
+            rows.push_str(&format!(" {:.1} |\n", c.after_offroad_pct()));
+        }
+    }
+    if rows.is_empty() {
+        return rows;
+    }
+    let mut head = String::from("| set | method |");
+    for (_, role) in ROLES {
+        for side in Contact::ALL {
+            head.push_str(&format!(" {role} {} % |", side.name()));
+        }
+    }
+    head.push_str(" after off-road % |\n|---|---|");
+    head.push_str(&"---|".repeat(3 * ROLES.len() + 1));
+    format!(
+        "First collisions: percent of agents by the other vehicle's role and where it was \
+         (ahead = the agent drove into it, behind = it drove into the agent).\n\n{head}\n{rows}"
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -188,6 +228,7 @@ mod tests {
                 .collect(),
             total: SceneTally::default(),
             realism: None,
+            collisions: None,
         }
     }
 

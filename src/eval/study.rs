@@ -9,7 +9,7 @@ use super::evaluate::{EvalConfig, evaluate, simulated_scenes};
 use super::metrics::Metric;
 use super::plots;
 use super::policy::{EvalPolicy, IdmBaseline};
-use super::report::{MethodResult, markdown_table, results_json};
+use super::report::{MethodResult, collision_table, markdown_table, results_json};
 use super::sets::{EvalScenes, EvalSet};
 use super::trained::TrainedPolicy;
 use crate::driver::IdmParams;
@@ -168,10 +168,13 @@ pub fn write_study(
     atomic_write(&dir.join("results.json"), json.as_bytes())?;
     written.push(dir.join("results.json"));
     let set_names: Vec<EvalSet> = sets.iter().map(|s| s.set).collect();
-    atomic_write(
-        &dir.join("table.md"),
-        markdown_table(results, &set_names).as_bytes(),
-    )?;
+    let mut table = markdown_table(results, &set_names);
+    let collisions = collision_table(results, &set_names);
+    if !collisions.is_empty() {
+        table.push('\n');
+        table.push_str(&collisions);
+    }
+    atomic_write(&dir.join("table.md"), table.as_bytes())?;
     written.push(dir.join("table.md"));
     let figures = dir.join("figures");
     std::fs::create_dir_all(&figures).map_err(|e| Error::io(&figures, e))?;

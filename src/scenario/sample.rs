@@ -15,7 +15,7 @@ use super::family::{HeroSpec, HeroVehicle, LogicalScenario};
 use super::hero::HeroScripts;
 use super::placement::{LaneRef, main_lanes_at, main_road_length, place};
 use super::range::{Range, Sampler, quantize};
-use crate::data::{AgentState, TrafficStatistics, VehicleClass, VehicleSample};
+use crate::data::{AgentState, LaneTraffic, TrafficStatistics, VehicleClass, VehicleSample};
 use crate::driver::{IdmDriver, IdmParams, host_f64};
 use crate::error::{Error, Result};
 use crate::geometry::OrientedBox;
@@ -27,9 +27,6 @@ use crate::sim::{ActionLimits, Dynamics, MapCaches, Rollout, RolloutConfig, Scri
 pub const MAX_ATTEMPTS: u64 = 40;
 /// A background vehicle keeps at least this much time gap (s) to the scenario's own vehicles.
 const MIN_BACKGROUND_HEADWAY_S: f64 = 0.6;
-/// Background followers start no faster than their leader plus gap / this (s), so nobody
-/// begins on a collision course the scenario did not intend.
-const CLOSING_HORIZON_S: f64 = 4.0;
 
 /// What sampling needs besides the family.
 pub struct SamplingContext<'a> {
@@ -373,38 +370,49 @@ fn plan_background(
             }
             s += step.max(8.0);
         }
-        // Speeds: nobody starts closing in faster than the gap allows.
         on_lane.sort_by(|a, b| a.station.total_cmp(&b.station));
-        for i in (0..on_lane.len().saturating_sub(1)).rev() {
-            let (lead_station, lead_len, lead_speed) = (
-                on_lane[i + 1].station,
-                on_lane[i + 1].vehicle.length,
-                on_lane[i + 1].speed,
-            );
-            let f = &mut on_lane[i];
-            let gap = lead_station - f.station - 0.5 * (lead_len + f.vehicle.length);
-            let cap = lead_speed + gap.max(0.0) / CLOSING_HORIZON_S;
-            if !f.fixed && f.speed > cap {
-                f.speed = cap;
-            }
-        }
-        for i in 1..on_lane.len() {
-            let (f_station, f_len, f_speed, f_fixed) = (
-                on_lane[i - 1].station,
-                on_lane[i - 1].vehicle.length,
-                on_lane[i - 1].speed,
-                on_lane[i - 1].fixed,
-            );
-            let l = &mut on_lane[i];
-            let gap = l.station - f_station - 0.5 * (l.vehicle.length + f_len);
-            let floor = f_speed - gap.max(0.0) / CLOSING_HORIZON_S;
-            if f_fixed && !l.fixed && l.speed < floor {
-                l.speed = floor;
-            }
-        }
+        match_recorded_closing(&mut on_lane, traffic, &mut sampler.rng);
         out.extend(on_lane.into_iter().filter(|p| !p.fixed));
     }
     Ok(out)
+}
+
+/// Ties the speeds of a lane's vehicles (sorted by station) to their neighbours' the way the
+/// recording does: a background follower closes in on its leader no faster than a closing
+/// rate drawn from the recorded followers' ([`LaneTraffic::closing_rates`]), and a background
+/// leader ahead of a scenario vehicle is sped up likewise. A drawn rate below 0 (the gap
+/// opened) only pins the follower to its leader's speed: recorded opening rates come mostly
+/// from short gaps and would slow a follower 100 m back to a crawl. Speeds drawn per vehicle
+/// alone put
+/// fast cars a few seconds behind slow trucks: 6 % of the controlled agents then started
+/// less than 5 s from a collision, against 0.1 % in the A9 logs, and the long-tail collisions
+/// were mostly those rear-ends rather than the scenarios' manoeuvres.
+fn match_recorded_closing(
+    on_lane: &mut [Planned],
+    traffic: &LaneTraffic,
+    rng: &mut impl rand::Rng,
+) {
+    let gap = |f: &Planned, l: &Planned| {
+        (l.station - f.station - 0.5 * (l.vehicle.length + f.vehicle.length)).max(0.0)
+    };
+    for i in (0..on_lane.len().saturating_sub(1)).rev() {
+        if on_lane[i].fixed {
+            continue;
+        }
+        let rate = traffic.draw_closing_rate(rng).max(0.0);
+        let cap = on_lane[i + 1].speed + rate * gap(&on_lane[i], &on_lane[i + 1]);
+        let f = &mut on_lane[i];
+        f.speed = f.speed.min(cap);
+    }
+    for i in 1..on_lane.len() {
+        if !on_lane[i - 1].fixed || on_lane[i].fixed {
+            continue;
+        }
+        let rate = traffic.draw_closing_rate(rng).max(0.0);
+        let floor = on_lane[i - 1].speed - rate * gap(&on_lane[i - 1], &on_lane[i]);
+        let l = &mut on_lane[i];
+        l.speed = l.speed.max(floor);
+    }
 }
 
 /// Every vehicle on the road and no two overlapping, at the current step.

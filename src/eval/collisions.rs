@@ -1,0 +1,212 @@
+//! Who collides with whom: each controlled agent's first collision in an evaluation rollout,
+//! classified by the other vehicle's role (a scripted hero, another controlled agent, a
+//! replayed one) and where it was in the agent's frame (ahead: the agent ran into it;
+//! behind: it ran into the agent; beside: a side contact, e.g. a cut-in or a lane change).
+//!
+//! The collision rate alone cannot tell a policy that fails to brake for a cut-in from one
+//! that squeezes its neighbours or leaves its lane; this breakdown can, and it is what a
+//! reward or a scenario family should be judged against.
+
+use serde::{Deserialize, Serialize};
+
+use crate::geometry::OrientedBox;
+use crate::scene::{AgentRole, Scene};
+use crate::sim::Rollout;
+
+/// Where the other vehicle was, in the colliding agent's frame, one step before the first
+/// contact.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Contact {
+    /// Ahead within +-45 degrees of the agent's heading: the agent drove into it.
+    Ahead,
+    /// Behind within +-45 degrees: it drove into the agent.
+    Behind,
+    /// To one side.
+    Beside,
+}
+
+impl Contact {
+    pub const ALL: [Contact; 3] = [Contact::Ahead, Contact::Behind, Contact::Beside];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Contact::Ahead => "ahead",
+            Contact::Behind => "behind",
+            Contact::Beside => "beside",
+        }
+    }
+
+    /// From the other vehicle's centre relative to the agent's, rotated into the agent's frame.
+    pub fn from_offset(longitudinal: f64, lateral: f64) -> Self {
+        if lateral.abs() > longitudinal.abs() {
+            Self::Beside
+        } else if longitudinal >= 0.0 {
+            Self::Ahead
+        } else {
+            Self::Behind
+        }
+    }
+}
+
+/// One agent's first collision.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FirstCollision {
+    pub scene: String,
+    pub agent: usize,
+    /// Time of the contact after the current step (s).
+    pub time_s: f64,
+    /// The other vehicle: its role, and where it was.
+    pub with: AgentRole,
+    pub contact: Contact,
+    /// The agent had already left the road before the contact.
+    pub after_offroad: bool,
+    /// Speeds at the step before the contact (m/s).
+    pub speed: f64,
+    pub other_speed: f64,
+}
+
+/// Counts of first collisions by the other vehicle's role and the contact side, and when they
+/// happen.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct CollisionBreakdown {
+    /// Controlled agents measured.
+    pub agents: usize,
+    pub collisions: Vec<FirstCollision>,
+}
+
+impl CollisionBreakdown {
+    /// Percent of agents whose first collision is with `with` on side `contact`.
+    pub fn share(&self, with: AgentRole, contact: Contact) -> f64 {
+        let n = self
+            .collisions
+            .iter()
+            .filter(|c| c.with == with && c.contact == contact)
+            .count();
+        100.0 * n as f64 / self.agents.max(1) as f64
+    }
+
+    /// Percent of agents whose first collision came after they had left the road.
+    pub fn after_offroad_pct(&self) -> f64 {
+        let n = self.collisions.iter().filter(|c| c.after_offroad).count();
+        100.0 * n as f64 / self.agents.max(1) as f64
+    }
+
+    /// `{hero: {ahead, behind, beside}, controlled: {..}, replayed: {..}, after_offroad}`,
+    /// each the percent of agents.
+    pub fn json(&self) -> serde_json::Value {
+        let mut o = serde_json::Map::new();
+        for (role, name) in ROLES {
+            let sides: serde_json::Map<String, serde_json::Value> = Contact::ALL
+                .iter()
+                .map(|&c| (c.name().to_string(), serde_json::json!(self.share(role, c))))
+                .collect();
+            o.insert(name.to_string(), serde_json::Value::Object(sides));
+        }
+        o.insert(
+            "after_offroad".into(),
+            serde_json::json!(self.after_offroad_pct()),
+        );
+        serde_json::Value::Object(o)
+    }
+}
+
+/// The other vehicle's roles, by their JSON and table names.
+pub const ROLES: [(AgentRole, &str); 3] = [
+    (AgentRole::Hero, "hero"),
+    (AgentRole::Controlled, "controlled"),
+    (AgentRole::Replayed, "replayed"),
+];
+
+/// Per scene of the batch, its controlled agents' first collisions.
+pub(super) fn first_collisions(
+    scenes: &[&Scene],
+    out: &Rollout,
+    dt: f64,
+) -> Vec<Vec<FirstCollision>> {
+    let [_, n, t1, _] = out.poses.dims();
+    let steps = t1 - 1;
+    let poses: Vec<f32> = out
+        .poses
+        .clone()
+        .into_data()
+        .convert::<f32>()
+        .try_into_vec::<f32>()
+        .unwrap_or_default();
+    let flags = |t: &burn::prelude::Tensor<3, burn::tensor::Bool>| -> Vec<bool> {
+        t.clone()
+            .into_data()
+            .try_into_vec_as::<bool>()
+            .unwrap_or_default()
+    };
+    let (present, collision, offroad) = (
+        flags(&out.present),
+        flags(&out.collision),
+        flags(&out.offroad),
+    );
+    let pose = |b: usize, i: usize, t: usize| {
+        let k = ((b * n + i) * t1 + t) * 4;
+        [
+            poses[k] as f64,
+            poses[k + 1] as f64,
+            poses[k + 2] as f64,
+            poses[k + 3] as f64,
+        ]
+    };
+    scenes
+        .iter()
+        .enumerate()
+        .map(|(b, scene)| {
+            let agents = scene.agents.len().min(n);
+            let footprint = |i: usize, t: usize| {
+                let p = pose(b, i, t);
+                let a = &scene.agents[i];
+                OrientedBox::new([p[0], p[1]], p[2], a.length, a.width)
+            };
+            let controlled: Vec<usize> = (0..agents)
+                .filter(|&i| scene.agents[i].role == AgentRole::Controlled)
+                .collect();
+            let mut found = Vec::new();
+            for &i in &controlled {
+                let row = (b * n + i) * steps;
+                let Some(t) = (0..steps).find(|&t| collision[row + t]) else {
+                    continue;
+                };
+                // The flag at t is the transition into step t + 1: the boxes overlap there.
+                let me = footprint(i, t + 1);
+                let other = (0..agents).find(|&j| {
+                    j != i && present[(b * n + j) * t1 + t + 1] && me.overlaps(&footprint(j, t + 1))
+                });
+                let Some(j) = other else { continue };
+                // Where the other was one step before the contact: at the contact a fast
+                // closing vehicle may already have passed the other's centre.
+                let (p, q) = (pose(b, i, t), pose(b, j, t));
+                let (dx, dy) = (q[0] - p[0], q[1] - p[1]);
+                let (sin, cos) = p[2].sin_cos();
+                found.push(FirstCollision {
+                    scene: scene.id.clone(),
+                    agent: i,
+                    time_s: (t + 1) as f64 * dt,
+                    with: scene.agents[j].role,
+                    contact: Contact::from_offset(cos * dx + sin * dy, -sin * dx + cos * dy),
+                    after_offroad: (0..t).any(|s| offroad[row + s]),
+                    speed: pose(b, i, t)[3],
+                    other_speed: pose(b, j, t)[3],
+                });
+            }
+            found
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn contact_side_follows_the_agents_frame() {
+        assert_eq!(Contact::from_offset(5.0, 1.0), Contact::Ahead);
+        assert_eq!(Contact::from_offset(-5.0, -1.0), Contact::Behind);
+        assert_eq!(Contact::from_offset(1.0, -2.0), Contact::Beside);
+    }
+}
