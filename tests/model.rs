@@ -374,3 +374,66 @@ fn parameter_counts_follow_the_config() {
     // Same architecture, a 1-wide output instead of 4 (mean and log sigma of two controls).
     assert_eq!(paper - value, 3 * (128 + 1));
 }
+
+/// `with_constant_std` sets every present agent's sigma and leaves the mean alone, also on an
+/// autodiff device, where the new weights must stay trainable leaves.
+#[test]
+fn constant_std_sets_sigma_everywhere_and_keeps_the_mean() {
+    for autodiff in [false, true] {
+        let device = device(autodiff);
+        let (policy, value) = networks(&device, 5);
+        let batch = SceneBatch::from_scenes(&test_scenes(3), &device).expect("batch");
+        let before = outputs(&policy, &value, &batch);
+        let sigma = [0.4, 0.0022];
+        let policy = policy.with_constant_std(sigma);
+        let after = outputs(&policy, &value, &batch);
+        assert_eq!(before.mean, after.mean);
+        let frames = logged_frames(&batch, batch.history_steps);
+        let agents = AgentInput::from_frames(&batch, &frames, policy.config());
+        let present = values(agents.mask.clone().float());
+        assert!(present.iter().filter(|&&p| p > 0.5).count() > 5);
+        for (slot, &p) in present.iter().enumerate() {
+            if p > 0.5 {
+                for (k, &s) in sigma.iter().enumerate() {
+                    let got = after.log_std[slot * 2 + k].exp() as f64;
+                    assert!(
+                        (got / s - 1.0).abs() < 1e-3,
+                        "slot {slot} control {k}: {got} vs {s}"
+                    );
+                }
+            }
+        }
+    }
+}
+
+/// The RMS error of the mean against the logged actions is the sigma that maximises the BC
+/// likelihood among state-independent ones: a tenth more or less scores worse.
+#[test]
+fn logged_action_rms_is_the_maximum_likelihood_sigma() {
+    let device = device(false);
+    let (policy, _) = networks(&device, 9);
+    let scenes = test_scenes(4);
+    let limits = rtr::sim::ActionLimits::default();
+    let (rms, count) =
+        rtr::train::imitation::logged_action_rms(&policy, &scenes, &limits, 16, &device)
+            .expect("rms");
+    assert!(count > 50, "{count} labelled agent-steps");
+    let batch = SceneBatch::from_scenes(&scenes, &device).expect("batch");
+    let n = batch.agent_states.dims()[1];
+    let labels =
+        rtr::train::imitation::BcLabels::new(&scenes, n, scenes[0].future_steps, &limits, &device);
+    assert_eq!(labels.count, count);
+    let nll = |scale: f64| {
+        let p = policy
+            .clone()
+            .with_constant_std([rms[0] * scale, rms[1] * scale]);
+        values(rtr::train::imitation::behaviour_cloning(
+            &p, &batch, &labels,
+        ))[0]
+    };
+    let (at, low, high) = (nll(1.0), nll(0.9), nll(1.1));
+    assert!(
+        at < low && at < high,
+        "NLL {low} / {at} / {high} at 0.9 / 1 / 1.1 x RMS"
+    );
+}

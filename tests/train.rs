@@ -362,6 +362,7 @@ fn a_warm_started_run_begins_from_its_initial_policy_and_warms_up_the_value() {
         let mut config = tiny("RTR", "alpha = 0.5", "");
         config.init = Some(rtr::train::InitConfig {
             policy: init.clone().into(),
+            std_from_logs: false,
         });
         config.ppo.value_warmup_iterations = warmup;
         config.optimizer.epochs = 2;
@@ -390,9 +391,53 @@ fn a_warm_started_run_begins_from_its_initial_policy_and_warms_up_the_value() {
     assert_ne!(policy, initial, "the policy never moved after the warm-up");
     assert!(rows.last().is_some_and(|r| r.il_loss > 0.0), "{rows:?}");
 
+    // With std_from_logs the warm start keeps its mean, and its sigma becomes the RMS error of
+    // that mean against the nominal training logs, the same for every agent.
+    let calibrated = dir.path().join("calibrated");
+    let mut config = tiny("RTR", "alpha = 0.5", "");
+    config.init = Some(rtr::train::InitConfig {
+        policy: init.clone().into(),
+        std_from_logs: true,
+    });
+    config.ppo.value_warmup_iterations = 2;
+    config.optimizer.epochs = 2;
+    train(config.clone(), &calibrated, false, None);
+    let load = |path: &Path| rtr::train::load_policy(path, &config.model, &device).expect("loads");
+    let first = load(Path::new(&init));
+    let latest = rtr::train::checkpoint::latest(&calibrated)
+        .expect("pointer")
+        .expect("a checkpoint");
+    let warmed = load(&latest.join("policy.bpk"));
+    let scenes: Vec<&rtr::scene::Scene> = data().nominal.iter().collect();
+    let (rms, _) =
+        rtr::train::imitation::logged_action_rms(&first, &scenes, &config.limits, 16, &device)
+            .expect("rms");
+    let batch = rtr::scene::SceneBatch::from_scenes(&scenes[..1], &device).expect("batch");
+    let act = |p: &rtr::model::PolicyNetwork| {
+        let lanes = rtr::model::LaneInput::from_batch(&batch, p.config());
+        let frames = rtr::sim::logged_frames(&batch, batch.history_steps);
+        let agents = rtr::model::AgentInput::from_frames(&batch, &frames, p.config());
+        let d = p.forward(&agents, &lanes, &p.encode_lanes(&lanes));
+        let v = |t: burn::prelude::Tensor<3>| -> Vec<f32> {
+            t.into_data().convert::<f32>().try_into_vec().expect("f32")
+        };
+        let mask: Vec<bool> = agents.mask.into_data().try_into_vec_as().expect("mask");
+        (v(d.mean), v(d.log_std), mask)
+    };
+    let ((mean0, _, _), (mean1, log_std, mask)) = (act(&first), act(&warmed));
+    assert_eq!(mean0, mean1);
+    assert!(mask.iter().any(|&m| m));
+    for (slot, _) in mask.iter().enumerate().filter(|(_, m)| **m) {
+        for k in 0..2 {
+            let sigma = (log_std[slot * 2 + k] as f64).exp();
+            assert!((sigma / rms[k] - 1.0).abs() < 1e-3, "{sigma} vs {}", rms[k]);
+        }
+    }
+
     let mut missing = tiny("RTR", "alpha = 0.5", "");
     missing.init = Some(rtr::train::InitConfig {
         policy: dir.path().join("no-such-policy.bpk"),
+        std_from_logs: false,
     });
     let workers = devices(&missing).expect("devices");
     let err = Trainer::new(missing, data(), workers, &dir.path().join("x"), false)

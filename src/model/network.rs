@@ -36,6 +36,53 @@ impl Mlp {
         }
     }
 
+    /// The last layer with the outputs from `first` on made constants `values`: their
+    /// weights zeroed, their biases set. Training moves them again from there.
+    fn with_constant_outputs(mut self, first: usize, values: &[f32]) -> Self {
+        let Some(last) = self.layers.pop() else {
+            return self;
+        };
+        let width = last.weight.dims()[1];
+        let keep: Vec<f32> = (0..width)
+            .map(|k| {
+                if (first..first + values.len()).contains(&k) {
+                    0.0
+                } else {
+                    1.0
+                }
+            })
+            .collect();
+        let set: Vec<f32> = (0..width)
+            .map(|k| {
+                k.checked_sub(first)
+                    .and_then(|i| values.get(i))
+                    .copied()
+                    .unwrap_or(0.0)
+            })
+            .collect();
+        // Rebuilt from their values, so the new weights are leaves like freshly loaded ones
+        // (an autodiff op's output cannot become a tracked parameter).
+        let reset = |t: Tensor<2>, f: &dyn Fn(Tensor<2>) -> Tensor<2>| {
+            let (tracked, device) = (t.is_require_grad(), t.device());
+            let out = Tensor::<2>::from_data(f(t.detach()).into_data(), &device);
+            if tracked { out.require_grad() } else { out }
+        };
+        let weight = last.weight.map(|w| {
+            let keep = Tensor::<1>::from_floats(keep.as_slice(), &w.device()).reshape([1, width]);
+            reset(w, &|w| w * keep.clone())
+        });
+        let bias = last.bias.map(|bias| {
+            bias.map(|b| {
+                let device = b.device();
+                let keep = Tensor::<1>::from_floats(keep.as_slice(), &device).reshape([1, width]);
+                let set = Tensor::<1>::from_floats(set.as_slice(), &device).reshape([1, width]);
+                reset(b.reshape([1, width]), &|b| b * keep.clone() + set.clone()).reshape([width])
+            })
+        });
+        self.layers.push(Linear { weight, bias });
+        self
+    }
+
     pub fn forward<const D: usize>(&self, mut x: Tensor<D>) -> Tensor<D> {
         let last = self.layers.len() - 1;
         for (i, layer) in self.layers.iter().enumerate() {
@@ -210,6 +257,28 @@ shared_network_methods!(PolicyNetwork, 4);
 shared_network_methods!(ValueNetwork, 1);
 
 impl PolicyNetwork {
+    /// The same policy with the state-independent sigma `std` (m/s^2, rad) for every agent:
+    /// the action head's log-sigma outputs are made constant, the mean is untouched. Values
+    /// outside what the head can express (`log_std_range` times `action_scale`) are clamped.
+    pub fn with_constant_std(self, std: [f64; 2]) -> Self {
+        let config = self.config().clone();
+        let [lo, hi] = config.log_std_range;
+        let raw: Vec<f32> = (0..2)
+            .map(|k| {
+                let relative = (std[k] / config.action_scale[k]).ln();
+                // sigmoid(raw) * (hi - lo) + lo = relative, kept inside the open interval.
+                let p = ((relative - lo) / (hi - lo)).clamp(1e-4, 1.0 - 1e-4);
+                (p / (1.0 - p)).ln() as f32
+            })
+            .collect();
+        Self {
+            network: EncoderWithHead {
+                encoder: self.network.encoder,
+                head: self.network.head.with_constant_outputs(2, &raw),
+            },
+        }
+    }
+
     /// Action distribution of every agent; agents outside `agents.mask` (padding, absent) get
     /// a constant one (mean 0), so nothing flows through them.
     pub fn forward(

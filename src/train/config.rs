@@ -286,6 +286,14 @@ pub struct InitConfig {
     /// A policy of the same model config: a `policy.bpk`, or a folder holding one (a model in
     /// `models/`, a finished run), relative to the run file.
     pub policy: PathBuf,
+    /// Replace the warm-started policy's sigma by a state-independent one measured on the
+    /// nominal training logs: per control, the root-mean-square error of its mean against the
+    /// logged (inverse-model) action. A policy trained by closed-loop IL through its mean never
+    /// trained its sigma, and PPO explores with it: an untrained steering sigma of 0.013 rad at
+    /// 35 m/s throws agents off the road within seconds, and PPO then learns lane keeping
+    /// against its own noise instead of the infractions of the scenarios.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub std_from_logs: bool,
 }
 
 impl InitConfig {

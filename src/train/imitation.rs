@@ -140,3 +140,61 @@ pub fn behaviour_cloning(
     }
     total
 }
+
+/// Root-mean-square difference between `policy`'s mean action and the inverse-model action of
+/// the log, per control (m/s^2, rad), over every labelled agent-step of `scenes`, the policy
+/// seeing the logged history as in BC: the maximum-likelihood sigma of a state-independent
+/// Normal around the policy's mean. Scenes go in batches of `batch` with one window shape.
+pub fn logged_action_rms(
+    policy: &PolicyNetwork,
+    scenes: &[&Scene],
+    limits: &ActionLimits,
+    batch: usize,
+    device: &Device,
+) -> Result<([f64; 2], usize)> {
+    let mut groups: Vec<Vec<&Scene>> = Vec::new();
+    for &scene in scenes {
+        let shape = |s: &Scene| (s.history_steps, s.future_steps);
+        match groups
+            .iter_mut()
+            .find(|g| g.len() < batch.max(1) && shape(g[0]) == shape(scene))
+        {
+            Some(g) => g.push(scene),
+            None => groups.push(vec![scene]),
+        }
+    }
+    let (mut squares, mut count) = ([0.0f64; 2], 0usize);
+    for group in groups {
+        let scene_batch = SceneBatch::from_scenes(&group, device)?;
+        let n = scene_batch.agent_states.dims()[1];
+        let labels = BcLabels::new(&group, n, group[0].future_steps, limits, device);
+        let config = policy.config();
+        let lanes = LaneInput::from_batch(&scene_batch, config);
+        let encoded = policy.encode_lanes(&lanes);
+        for (t, (action, mask)) in labels.actions.iter().zip(&labels.mask).enumerate() {
+            let frames = logged_frames(&scene_batch, scene_batch.history_steps + t);
+            let agents = AgentInput::from_frames(&scene_batch, &frames, config);
+            let mean = policy.forward(&agents, &lanes, &encoded).mean;
+            let error =
+                (mean - action.clone()).powi_scalar(2) * mask.clone().float().unsqueeze_dim::<3>(2);
+            let sums: Vec<f32> = error
+                .sum_dim(0)
+                .sum_dim(1)
+                .into_data()
+                .convert::<f32>()
+                .try_into_vec::<f32>()
+                .unwrap_or_default();
+            for (k, v) in sums.iter().take(2).enumerate() {
+                squares[k] += *v as f64;
+            }
+        }
+        count += labels.count;
+    }
+    if count == 0 {
+        return Err(crate::error::Error::InvalidArgument(
+            "no logged agent-steps with an inverse-model action to measure the policy's error on"
+                .into(),
+        ));
+    }
+    Ok((squares.map(|s| (s / count as f64).sqrt()), count))
+}

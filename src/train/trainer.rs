@@ -159,6 +159,31 @@ pub struct IterationTiming {
     pub update_s: f64,
 }
 
+/// Nominal training scenes the warm start's sigma is measured on (every k-th, for a spread).
+const STD_SCENES: usize = 128;
+
+/// `policy` with the sigma of [`crate::train::config::InitConfig::std_from_logs`], said on
+/// stderr.
+fn std_from_logs(
+    policy: PolicyNetwork,
+    data: &TrainingData,
+    config: &TrainConfig,
+    device: &Device,
+) -> Result<PolicyNetwork> {
+    let stride = data.nominal.len().div_ceil(STD_SCENES).max(1);
+    let scenes: Vec<&crate::scene::Scene> = data.nominal.iter().step_by(stride).collect();
+    let (std, count) =
+        super::imitation::logged_action_rms(&policy, &scenes, &config.limits, 16, device)?;
+    eprintln!(
+        "init: sigma from the logs = {:.4} m/s^2, {:.5} rad (RMS error of the warm start's mean \
+         over {count} logged agent-steps of {} scenes)",
+        std[0],
+        std[1],
+        scenes.len()
+    );
+    Ok(policy.with_constant_std(std))
+}
+
 fn optimizer(config: &TrainConfig) -> ModuleOptimizer {
     AdamWConfig::new()
         .with_weight_decay(config.optimizer.weight_decay as f32)
@@ -225,7 +250,14 @@ impl<'d> Trainer<'d> {
                         (policy, value)
                     });
                 let policy = match &config.init {
-                    Some(init) => checkpoint::load_module(policy, &init.policy_file())?,
+                    Some(init) => {
+                        let policy = checkpoint::load_module(policy, &init.policy_file())?;
+                        if init.std_from_logs {
+                            std_from_logs(policy, data, &config, &main)?
+                        } else {
+                            policy
+                        }
+                    }
                     None => policy,
                 };
                 (
