@@ -644,3 +644,38 @@ fn a_clip_that_starts_late_starts_at_time_zero_and_two_clips_with_one_id_are_ref
         "{err}"
     );
 }
+
+/// Vehicle lengths in feet are refused as a whole even where each one is a possible length
+/// (a 4.5 m car reads 14.8, and NGSIM does record a few 14 m "cars"): the file's median car
+/// is judged, and the error names the file, a line and the likely unit.
+#[test]
+fn a_file_whose_cars_are_measured_in_feet_is_refused() {
+    let mut text = String::new();
+    flate2::read::GzDecoder::new(
+        std::fs::File::open(us101_dir().join("USA_US101-15_1_T-1.xml.gz")).unwrap(),
+    )
+    .read_to_string(&mut text)
+    .unwrap();
+    let mut feet = String::new();
+    let mut rest = text.as_str();
+    while let Some(at) = rest.find("<length>") {
+        let (head, tail) = rest.split_at(at + "<length>".len());
+        let end = tail.find("</length>").unwrap();
+        let metres: f64 = tail[..end].trim().parse().unwrap();
+        feet.push_str(head);
+        // Longer vehicles would be refused one by one (over 25 m): only cars and vans here.
+        let length = if metres / 0.3048 <= 25.0 {
+            metres / 0.3048
+        } else {
+            metres
+        };
+        feet.push_str(&format!("{length:.4}"));
+        rest = &tail[end..];
+    }
+    feet.push_str(rest);
+    let err = load_error(&feet);
+    assert!(
+        err.contains("feet") && err.contains("median car") && err.contains("line "),
+        "{err}"
+    );
+}

@@ -86,6 +86,11 @@ pub struct CommonRoadDocument {
     pub skipped: Vec<(String, usize)>,
 }
 
+/// Cars a file needs before its median car length is judged.
+const MIN_CARS_FOR_MEDIAN: usize = 5;
+/// Longest plausible median car of a recording (m).
+const MAX_MEDIAN_CAR_M: f64 = 7.0;
+
 struct Reader<'a> {
     doc: &'a Document<'a>,
     source: &'a str,
@@ -138,24 +143,26 @@ impl<'a> Reader<'a> {
             Some((_, n)) => *n += 1,
             None => skipped.push((what.to_string(), 1)),
         };
+        let mut car_nodes = Vec::new();
         for node in root.children().filter(Node::is_element) {
-            match node.tag_name().name() {
-                "lanelet" => lanelets.push(self.lanelet(node, &signs)?),
-                "dynamicObstacle" => {
-                    if let Some(o) = self.obstacle(node, &mut skip)? {
-                        self.check_motion(node, &o, time_step)?;
-                        vehicles.push(o);
-                    }
+            let dynamic = match node.tag_name().name() {
+                "lanelet" => {
+                    lanelets.push(self.lanelet(node, &signs)?);
+                    false
                 }
-                "obstacle" if self.child_text(node, "role") == Some("dynamic") => {
-                    if let Some(o) = self.obstacle(node, &mut skip)? {
-                        self.check_motion(node, &o, time_step)?;
-                        vehicles.push(o);
-                    }
+                "dynamicObstacle" => true,
+                "obstacle" => self.child_text(node, "role") == Some("dynamic"),
+                _ => false,
+            };
+            if dynamic && let Some(o) = self.obstacle(node, &mut skip)? {
+                self.check_motion(node, &o, time_step)?;
+                if o.kind == "car" {
+                    car_nodes.push((o.length, node));
                 }
-                _ => {}
+                vehicles.push(o);
             }
         }
+        self.check_car_lengths(&mut car_nodes)?;
         Ok(CommonRoadDocument {
             benchmark_id: root.attribute("benchmarkID").unwrap_or("").to_string(),
             version: version.to_string(),
@@ -164,6 +171,28 @@ impl<'a> Reader<'a> {
             vehicles,
             skipped,
         })
+    }
+
+    /// The file's cars are car-sized as a whole: one recorded car may be 14 m long (NGSIM has
+    /// such errors), but a median car above [`MAX_MEDIAN_CAR_M`] means lengths in another unit
+    /// (feet: a 4.5 m car reads 14.8). The error points at the first car of median length.
+    fn check_car_lengths(&self, cars: &mut [(f64, Node)]) -> Result<()> {
+        if cars.len() < MIN_CARS_FOR_MEDIAN {
+            return Ok(());
+        }
+        cars.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let (median, node) = cars[cars.len() / 2];
+        if median <= MAX_MEDIAN_CAR_M {
+            return Ok(());
+        }
+        Err(self.err(
+            node,
+            format!(
+                "the median car of this file is {median} m long, expected at most \
+                 {MAX_MEDIAN_CAR_M} m (real cars are 3.5-5.5 m): are the lengths in feet \
+                 (1 ft = 0.3048 m)?"
+            ),
+        ))
     }
 
     /// An obstacle's velocities and orientations agree with how its positions move (so
