@@ -66,8 +66,8 @@ pub struct FirstCollision {
     pub other_speed: f64,
 }
 
-/// Counts of first collisions by the other vehicle's role and the contact side, and when they
-/// happen.
+/// Every measured agent's first collision, summarised as shares by the other vehicle's role
+/// and the contact side.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct CollisionBreakdown {
     /// Controlled agents measured.

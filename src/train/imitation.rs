@@ -7,7 +7,10 @@
 //!   is scored by the negative log-likelihood of the inverse-model action that reproduces the
 //!   log.
 //!
-//! Both return sums; the trainer divides by counts known before the forward pass
+//! - [`logged_action_rms`]: how far the policy's mean is from the logged actions, as BC sees
+//!   them; a warm start's sigma (`[init] std_from_logs`).
+//!
+//! Both losses return sums; the trainer divides by counts known before the forward pass
 //! ([`imitation_count`], [`BcLabels::count`]) so that losses split across devices add up.
 
 use burn::prelude::*;
