@@ -719,6 +719,90 @@ fn unwritable_outputs_are_refused_before_any_work() {
     assert_eq!(names, ["a-file"], "nothing else was written");
 }
 
+/// `scenarios generate` into a folder whose set folders hold files refuses before drawing:
+/// the loaders read every file of a set folder, so old scenarios would join the new set.
+#[test]
+fn scenarios_are_not_generated_into_an_earlier_set() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let stale = dir.path().join("train").join("stale.json");
+    std::fs::create_dir_all(stale.parent().unwrap()).expect("mkdir");
+    std::fs::write(&stale, "{}").expect("write");
+    let out = rtr(&[
+        "scenarios",
+        "generate",
+        "--in-distribution",
+        "2",
+        "--ood",
+        "0",
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("--out") && err.contains("already holds files"),
+        "{err}"
+    );
+    assert!(!dir.path().join("eval").exists(), "nothing written");
+}
+
+/// Inputs that are not what their flag wants are refused naming the flag: a folder given as
+/// a file, a scenario folder without its train/ set, a missing curated list of a run file.
+#[test]
+fn misplaced_inputs_name_their_flag_or_field() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let folder = dir.path().to_str().unwrap();
+    let cases: [(&str, Vec<&str>); 4] = [
+        ("--xodr", vec!["map", "summary", "--xodr", folder]),
+        ("--config", vec!["train", "--config", folder]),
+        (
+            "--recordings",
+            vec![
+                "sim2real",
+                "--recordings",
+                folder,
+                "--report",
+                "unused.json",
+            ],
+        ),
+        (
+            "--scenarios",
+            vec![
+                "train",
+                "--config",
+                "experiments/main/small/rtr.toml",
+                "--scenarios",
+                folder,
+            ],
+        ),
+    ];
+    for (flag, args) in cases {
+        let out = rtr(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && err.contains(flag) && err.contains(folder),
+            "{args:?}: {err}"
+        );
+    }
+    let run = dir.path().join("run.toml");
+    std::fs::write(
+        &run,
+        "method = \"RTR\"\nalpha = 0.5\n[data]\ncurated = \"missing.txt\"\nnominal_limit = 2\n",
+    )
+    .expect("write");
+    let out = rtr(&[
+        "train",
+        "--config",
+        run.to_str().unwrap(),
+        "--out",
+        dir.path().join("out").to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("data.curated") && err.contains("missing.txt"),
+        "{err}"
+    );
+}
+
 /// A fresh run refused after its data loaded (here a missing dynamics file) leaves no run
 /// folder behind: nothing for a later `--resume` to trip over.
 #[test]

@@ -679,3 +679,31 @@ fn a_file_whose_cars_are_measured_in_feet_is_refused() {
         "{err}"
     );
 }
+
+/// A lanelet whose bounds coincide (0 m wide) or lie 40 m apart is not a lane, and two
+/// vehicles may not share an id: each is an error at its element.
+#[test]
+fn degenerate_lanelets_and_duplicate_vehicle_ids_are_errors() {
+    let zero = template(10).replace(
+        "<rightBound><point><x>0</x><y>0</y></point><point><x>100</x><y>0</y></point></rightBound>",
+        "<rightBound><point><x>0</x><y>3.5</y></point><point><x>100</x><y>3.5</y></point></rightBound>",
+    );
+    let err = load_error(&zero);
+    assert!(
+        err.contains("lanelet 1") && err.contains("0.00 m wide") && err.contains("line 3"),
+        "{err}"
+    );
+    let wide = template(10).replace("<y>-3.5</y>", "<y>-40</y>");
+    let err = load_error(&wide);
+    assert!(
+        err.contains("lanelet 2") && err.contains("40.00 m wide"),
+        "{err}"
+    );
+
+    let text = template(10);
+    let start = text.find("  <dynamicObstacle").unwrap();
+    let end = text.find("</dynamicObstacle>").unwrap() + "</dynamicObstacle>\n".len();
+    let twice = format!("{}{}{}", &text[..end], &text[start..end], &text[end..]);
+    let err = load_error(&twice);
+    assert!(err.contains("obstacle id 7 is used twice"), "{err}");
+}

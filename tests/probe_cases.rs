@@ -190,6 +190,18 @@ fn opendrive_geometry_nonsense_is_refused_with_its_line() {
         &["r.xodr", "line", "wide"],
     );
     let geometry = |attrs: &str, shape: &str| format!("<geometry {attrs}>{shape}</geometry>");
+    // A heading of 90: degrees, where the standard says radians.
+    refused(
+        load(xodr(
+            Some(&geometry(
+                r#"s="0" x="0" y="0" hdg="90" length="100""#,
+                "<line/>",
+            )),
+            "",
+            None,
+        )),
+        &["r.xodr", "line", "`hdg`", "degrees"],
+    );
     refused(
         load(xodr(
             Some(&geometry(
@@ -349,4 +361,22 @@ fn a_1khz_recording_loads_and_thins_to_100_hz() {
     assert_eq!(thinned.len(), 300);
     assert!((thinned.period - 0.01).abs() < 1e-9);
     assert_eq!(thinned.t[1], track.t[10]);
+}
+
+/// Recordings in which nothing moves carry no physics to compare: sim2real refuses them by
+/// file and column instead of reporting that the model explains them.
+#[test]
+fn parked_recordings_are_refused_before_any_fit() {
+    let mut text = String::from("track_id,t,x,y,heading,speed,accel_cmd,steer_cmd\n");
+    for track in 1..=3 {
+        for i in 0..600 {
+            text.push_str(&format!("{track},{},10,5,0,0,0,0\n", i as f64 * 0.1));
+        }
+    }
+    let recordings = rtr::data::Recordings::parse("parked.csv", &text).expect("it parses");
+    let options = rtr::sim2real::identify::Sim2RealOptions::default();
+    refused(
+        rtr::sim2real::identify::identify(&recordings, &options, &|_| {}).map(|_| ()),
+        &["parked.csv", "speed", "no vehicle drives"],
+    );
 }

@@ -540,6 +540,23 @@ fn scenario_files_with_nonsense_name_the_file_and_field() {
     refused(&|j| j["colour"] = "red".into(), &["colour"]);
     refused(&|j| j["map"]["lane_width"] = 1e9.into(), &["map", "lane"]);
     refused(&|j| j["map"]["banking"] = 0.1.into(), &["banking"]);
+    // A history state moved 1 km (a teleport), and a zeroed speed column under moving
+    // positions: the motion says otherwise.
+    refused(
+        &|j| {
+            let x = j["agents"][0]["states"][1][0].as_f64().unwrap();
+            j["agents"][0]["states"][1][0] = (x + 1000.0).into();
+        },
+        &["agents[0]", "states[1] moves", "a jump"],
+    );
+    refused(
+        &|j| {
+            for k in 0..=last {
+                j["agents"][0]["states"][k][3] = 0.0.into();
+            }
+        },
+        &["agents[0].states", "times the speed of the positions"],
+    );
 }
 
 /// Share (%) of `agents` (scene, agent index) with a leader whose time to collision at the

@@ -43,6 +43,20 @@ pub fn atomic_write(path: &Path, bytes: &[u8]) -> Result<()> {
     })
 }
 
+/// Checks that the input `path` given with `flag` is a file, so a folder or a missing path is
+/// refused naming the option rather than with the operating system's bare message.
+pub fn check_input_file(path: &Path, flag: &str) -> Result<()> {
+    let why = match path.metadata() {
+        Ok(m) if m.is_dir() => "is a folder; expected a file",
+        Ok(_) => return Ok(()),
+        Err(_) => "no such file",
+    };
+    Err(Error::InvalidArgument(format!(
+        "{flag} {}: {why}",
+        path.display()
+    )))
+}
+
 /// What an output path must be.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum OutputKind {

@@ -18,6 +18,9 @@ use roxmltree::{Document, Node};
 use super::opendrive::*;
 use crate::{Error, Result};
 
+/// Largest |hdg| of a plan-view geometry (rad): one turn plus slack for unwrapped angles.
+const MAX_HEADING_RAD: f64 = 2.0 * std::f64::consts::PI + 0.01;
+
 /// Widest plausible lane (m).
 const MAX_LANE_WIDTH: f64 = 10.0;
 /// Some lane vehicles follow (driving, ramp, entry, exit) must be at least this wide
@@ -594,6 +597,18 @@ impl Ctx<'_, '_> {
             return Err(self.err(
                 node,
                 "<geometry> attribute `length` is 0; expected metres > 0",
+            ));
+        }
+        // Radians, as the standard says; beyond one turn it is almost surely degrees (every
+        // other reader of rtr refuses headings the same way).
+        if geometry.hdg.abs() > MAX_HEADING_RAD {
+            return Err(self.err(
+                node,
+                format!(
+                    "<geometry> attribute `hdg` is {}: looks like degrees; expected radians, \
+                     |hdg| <= 2 pi",
+                    geometry.hdg
+                ),
             ));
         }
         if let Some(k) = polynomial_curvature(&geometry.kind, geometry.length)

@@ -157,6 +157,63 @@ fn check_agent(source: &str, i: usize, a: &ScenarioAgent) -> Result<()> {
     Ok(())
 }
 
+/// A step may cover this multiple of what its speeds allow, plus [`JUMP_SLACK_M`], before it
+/// is a jump (the rule of the recordings reader).
+const JUMP_FACTOR: f64 = 2.0;
+const JUMP_SLACK_M: f64 = 1.0;
+
+/// One vehicle's history moves as its speeds and headings say: no jump between two states
+/// (a teleport, a corrupted row), and speeds and headings that agree with the motion
+/// ([`crate::data::motion`]: km/h, degrees, a zeroed speed column).
+fn check_history_motion(source: &str, i: usize, a: &ScenarioAgent, dt: f64) -> Result<()> {
+    let states: Vec<(usize, [f64; 4])> = a
+        .states
+        .iter()
+        .enumerate()
+        .filter_map(|(k, s)| s.map(|s| (k, s)))
+        .collect();
+    let jumps: Vec<String> = states
+        .windows(2)
+        .filter_map(|pair| {
+            let ((j, p), (k, q)) = (pair[0], pair[1]);
+            let step = (k - j) as f64 * dt;
+            let distance = (q[0] - p[0]).hypot(q[1] - p[1]);
+            let allowed = JUMP_FACTOR * p[3].max(q[3]) * step + JUMP_SLACK_M;
+            (distance > allowed).then(|| {
+                format!(
+                    "states[{k}] moves {distance:.2} m in {step} s from states[{j}], but its \
+                     speeds ({} and {} m/s) allow at most {allowed:.2} m: a jump (teleport or \
+                     corrupted state)",
+                    p[3], q[3]
+                )
+            })
+        })
+        .collect();
+    // A few steps too long for their speeds: those states are at fault. Most of them: the
+    // speeds are (units, a zeroed column), which the motion check names.
+    let steps = states.len().saturating_sub(1);
+    if let Some(jump) = jumps.first()
+        && 2 * jumps.len() < steps
+    {
+        return Err(Error::invalid(source, format!("agents[{i}]"), jump.clone()));
+    }
+    let column = |c: usize| states.iter().map(|(_, s)| s[c]).collect::<Vec<_>>();
+    if states.windows(2).all(|w| w[1].0 == w[0].0 + 1)
+        && let Err(mismatch) =
+            crate::data::motion::check(dt, &column(0), &column(1), &column(2), &column(3))
+    {
+        return Err(Error::invalid(
+            source,
+            format!("agents[{i}].states"),
+            format!("{mismatch} (states are [x, y, heading, speed])"),
+        ));
+    }
+    match jumps.first() {
+        Some(jump) => Err(Error::invalid(source, format!("agents[{i}]"), jump.clone())),
+        None => Ok(()),
+    }
+}
+
 impl ConcreteScenario {
     /// `family-set-index`, e.g. `cut_in_left-eval-003`.
     pub fn id(&self) -> String {
@@ -264,6 +321,9 @@ impl ConcreteScenario {
                     DT_RANGE.end()
                 ),
             ));
+        }
+        for (i, a) in self.agents.iter().enumerate() {
+            check_history_motion(source, i, a, self.dt)?;
         }
         // Windows are allocated per step: a corrupt count must be an error, not an abort.
         if self.future_steps == 0 || self.future_steps > MAX_FUTURE_STEPS {

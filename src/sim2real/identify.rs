@@ -144,8 +144,35 @@ fn check_horizons(recordings: &Recordings, options: &Sim2RealOptions) -> Result<
     }
 }
 
+/// Fastest a vehicle of the recordings must drive (m/s) for its motion to say anything about
+/// the physics: standing or creeping vehicles excite nothing, and a model that keeps them
+/// still would be reported as explaining them.
+const MIN_TOP_SPEED: f64 = 1.0;
+
+/// Refuses recordings in which no vehicle moves.
+fn check_excitation(recordings: &Recordings) -> Result<()> {
+    let top = recordings
+        .tracks
+        .iter()
+        .flat_map(|t| t.speed.iter().copied())
+        .fold(0.0, f64::max);
+    if top >= MIN_TOP_SPEED {
+        return Ok(());
+    }
+    Err(Error::invalid(
+        &recordings.source,
+        "column `speed`",
+        format!(
+            "no vehicle drives faster than {top} m/s in these recordings: there is no motion to \
+             compare the simulator with; expected recordings of driving vehicles (at least \
+             {MIN_TOP_SPEED} m/s)"
+        ),
+    ))
+}
+
 fn split(recordings: &Recordings, options: &Sim2RealOptions) -> Result<Split> {
     check_horizons(recordings, options)?;
+    check_excitation(recordings)?;
     let mut order: Vec<usize> = (0..recordings.tracks.len()).collect();
     order.shuffle(&mut ChaCha8Rng::seed_from_u64(options.seed));
     let every = options.heldout_every.max(2);

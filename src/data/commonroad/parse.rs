@@ -86,6 +86,34 @@ pub struct CommonRoadDocument {
     pub skipped: Vec<(String, usize)>,
 }
 
+/// A lanelet's widest point must lie in this range (m): a tapering lane may narrow to 0 at an
+/// end, but a lane never wider than 0.5 m or wider than a whole carriageway is not one.
+const MIN_LANELET_WIDTH_M: f64 = 0.5;
+const MAX_LANELET_WIDTH_M: f64 = 20.0;
+
+/// The largest distance from a point of `left` to the polyline `right` (m).
+fn widest_gap(left: &[[f64; 2]], right: &[[f64; 2]]) -> f64 {
+    let to_segment = |p: [f64; 2], a: [f64; 2], b: [f64; 2]| {
+        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+        let len2 = dx * dx + dy * dy;
+        let u = if len2 > 0.0 {
+            (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / len2).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        (p[0] - a[0] - u * dx).hypot(p[1] - a[1] - u * dy)
+    };
+    left.iter()
+        .map(|&p| match right {
+            [only] => (p[0] - only[0]).hypot(p[1] - only[1]),
+            _ => right
+                .windows(2)
+                .map(|w| to_segment(p, w[0], w[1]))
+                .fold(f64::INFINITY, f64::min),
+        })
+        .fold(0.0, f64::max)
+}
+
 /// Cars a file needs before its median car length is judged.
 const MIN_CARS_FOR_MEDIAN: usize = 5;
 /// Longest plausible median car of a recording (m).
@@ -156,6 +184,12 @@ impl<'a> Reader<'a> {
             };
             if dynamic && let Some(o) = self.obstacle(node, &mut skip)? {
                 self.check_motion(node, &o, time_step)?;
+                if vehicles.iter().any(|v: &Obstacle| v.id == o.id) {
+                    return Err(self.err(
+                        node,
+                        format!("obstacle id {} is used twice, expected unique ids", o.id),
+                    ));
+                }
                 if o.kind == "car" {
                     car_nodes.push((o.length, node));
                 }
@@ -239,6 +273,17 @@ impl<'a> Reader<'a> {
         let id = self.id(node)?.to_string();
         let (left_bound, left_mark) = self.bound(self.required(node, "leftBound")?)?;
         let (right_bound, right_mark) = self.bound(self.required(node, "rightBound")?)?;
+        let widest = widest_gap(&left_bound, &right_bound);
+        if !(MIN_LANELET_WIDTH_M..=MAX_LANELET_WIDTH_M).contains(&widest) {
+            return Err(self.err(
+                node,
+                format!(
+                    "lanelet {id} is {widest:.2} m wide at its widest, expected a lane \
+                     {MIN_LANELET_WIDTH_M}-{MAX_LANELET_WIDTH_M} m wide (bounds swapped, \
+                     copied or in another unit?)"
+                ),
+            ));
+        }
         let refs = |tag: &str| -> Result<Vec<String>> {
             node.children()
                 .filter(|n| n.has_tag_name(tag))

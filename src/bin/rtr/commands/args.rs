@@ -55,7 +55,10 @@ pub struct MapSource {
 impl MapSource {
     pub fn load(&self) -> Result<Map> {
         match (&self.xodr, &self.procedural) {
-            (Some(path), _) => Map::from_xodr_file(path),
+            (Some(path), _) => {
+                rtr::io::check_input_file(path, "--xodr")?;
+                Map::from_xodr_file(path)
+            }
             (None, Some(spec)) => {
                 let od = self.procedural_spec(spec)?.build()?;
                 Map::from_opendrive(&od, &format!("procedural:{spec}"))

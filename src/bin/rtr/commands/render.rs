@@ -41,6 +41,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     };
     let targets = image_targets(&args.out, &opts)?;
     if let Some(path) = &args.scenario {
+        rtr::io::check_input_file(path, "--scenario")?;
         return render_scenario(path, &args, &targets);
     }
     let dataset = args.data.load()?;

@@ -72,6 +72,7 @@ pub fn run(command: ScenariosCommand) -> Result<()> {
                 ));
             }
             check_output(&out, OutputKind::Folder, "--out")?;
+            refuse_earlier_sets(&out)?;
             let families = load_families(&families.unwrap_or_else(builtin_families))?;
             let dataset = data.load()?;
             let stats =
@@ -109,4 +110,24 @@ pub fn run(command: ScenariosCommand) -> Result<()> {
             Ok(())
         }
     }
+}
+
+/// Refuses an `--out` whose set folders already hold files: the loaders read every file of a
+/// set folder, so a set drawn with other settings would be mixed into the new one unseen.
+fn refuse_earlier_sets(out: &std::path::Path) -> Result<()> {
+    for set in ScenarioSet::ALL {
+        let dir = out.join(set.name());
+        let Ok(mut entries) = std::fs::read_dir(&dir) else {
+            continue;
+        };
+        if entries.next().is_some() {
+            return Err(rtr::Error::InvalidArgument(format!(
+                "--out {}: {} already holds files; the loaders read every file there, so an \
+                 earlier set would be mixed into this one. Choose a new folder or remove them",
+                out.display(),
+                dir.display()
+            )));
+        }
+    }
+    Ok(())
 }

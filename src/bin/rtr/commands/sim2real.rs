@@ -61,7 +61,10 @@ pub fn run(args: Sim2RealArgs) -> Result<()> {
         check_output(path, OutputKind::File, "--save-dynamics")?;
     }
     let (recordings, commands_inferred) = match &args.recordings {
-        Some(path) => (rtr::data::Recordings::load(path)?, false),
+        Some(path) => {
+            rtr::io::check_input_file(path, "--recordings")?;
+            (rtr::data::Recordings::load(path)?, false)
+        }
         None => (
             a9_recordings(&args.data.load()?, 0.1, args.horizon + 2.0),
             true,

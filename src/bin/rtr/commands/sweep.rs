@@ -44,6 +44,7 @@ pub fn run(args: SweepArgs) -> Result<()> {
         .iter()
         .map(|s| EvalSet::parse(s.trim()))
         .collect::<Result<Vec<_>>>()?;
+    rtr::io::check_input_file(&args.config, "--config")?;
     let mut base = rtr::train::TrainConfig::from_toml_file(&args.config)?;
     if let Some(dir) = &args.scenarios {
         base.data.longtail_dir = Some(dir.clone());

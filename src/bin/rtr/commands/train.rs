@@ -23,8 +23,9 @@ pub struct TrainArgs {
     /// Physics terms from `rtr sim2real --save-dynamics`, replacing the run file's `dynamics`.
     #[arg(long)]
     dynamics: Option<PathBuf>,
-    /// Long-tail training scenarios from `rtr scenarios generate` (its train/), replacing the
-    /// run file's `data.longtail_dir` (saves drawing them at start).
+    /// Long-tail training scenarios: the folder `rtr scenarios generate --out` wrote (its
+    /// train/ set is used), replacing the run file's `data.longtail_dir` (saves drawing them
+    /// at start).
     #[arg(long)]
     scenarios: Option<PathBuf>,
     #[command(flatten)]
@@ -32,15 +33,17 @@ pub struct TrainArgs {
 }
 
 pub fn run(args: TrainArgs) -> Result<()> {
+    rtr::io::check_input_file(&args.config, "--config")?;
     let mut config = rtr::train::TrainConfig::from_toml_file(&args.config)?;
     if let Some(path) = &args.dynamics {
         // Absolute in the run's config.toml, so the run evaluates from any folder.
         config.dynamics = Some(path.canonicalize().unwrap_or_else(|_| path.clone()));
     }
     if let Some(dir) = &args.scenarios {
-        if !dir.is_dir() {
+        if !dir.join("train").is_dir() {
             return Err(Error::InvalidArgument(format!(
-                "--scenarios {}: no such folder; expected the train/ folder of `rtr scenarios generate`",
+                "--scenarios {}: no train/ folder in it; expected the folder `rtr scenarios \
+                 generate --out` wrote (holding train/, eval/, ood/)",
                 dir.display()
             )));
         }
