@@ -9,6 +9,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::tally::{bools, floats};
 use crate::geometry::OrientedBox;
 use crate::scene::{AgentRole, Scene};
 use crate::sim::Rollout;
@@ -126,23 +127,11 @@ pub(super) fn first_collisions(
 ) -> Vec<Vec<FirstCollision>> {
     let [_, n, t1, _] = out.poses.dims();
     let steps = t1 - 1;
-    let poses: Vec<f32> = out
-        .poses
-        .clone()
-        .into_data()
-        .convert::<f32>()
-        .try_into_vec::<f32>()
-        .unwrap_or_default();
-    let flags = |t: &burn::prelude::Tensor<3, burn::tensor::Bool>| -> Vec<bool> {
-        t.clone()
-            .into_data()
-            .try_into_vec_as::<bool>()
-            .unwrap_or_default()
-    };
+    let poses = floats(out.poses.clone());
     let (present, collision, offroad) = (
-        flags(&out.present),
-        flags(&out.collision),
-        flags(&out.offroad),
+        bools(out.present.clone()),
+        bools(out.collision.clone()),
+        bools(out.offroad.clone()),
     );
     let pose = |b: usize, i: usize, t: usize| {
         let k = ((b * n + i) * t1 + t) * 4;

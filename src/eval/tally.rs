@@ -27,14 +27,16 @@ struct HostRollout {
     offroad: Vec<bool>,
 }
 
-fn floats<const D: usize>(t: Tensor<D>) -> Vec<f32> {
+/// A tensor's values on the host as `f32`, row-major.
+pub(super) fn floats<const D: usize>(t: Tensor<D>) -> Vec<f32> {
     t.into_data()
         .convert::<f32>()
         .try_into_vec::<f32>()
         .unwrap_or_default()
 }
 
-fn bools<const D: usize>(t: Tensor<D, Bool>) -> Vec<bool> {
+/// A boolean tensor's values on the host, row-major.
+pub(super) fn bools<const D: usize>(t: Tensor<D, Bool>) -> Vec<bool> {
     t.into_data().try_into_vec_as::<bool>().unwrap_or_default()
 }
 
