@@ -5,6 +5,10 @@
 //! it is a dozen lines on two rectangles, allocation-free, and the same formula is what the
 //! batched tensor version in the simulator computes; the tests cross-check it against parry2d.
 
+/// Largest |heading| any reader accepts (rad): one turn plus slack for unwrapped angles.
+/// Beyond it a heading is almost surely in degrees, and every loader refuses it as such.
+pub const MAX_HEADING_RAD: f64 = 2.0 * std::f64::consts::PI + 0.01;
+
 /// Wraps an angle to (-pi, pi].
 pub fn wrap_angle(a: f64) -> f64 {
     let two_pi = std::f64::consts::TAU;

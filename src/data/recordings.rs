@@ -26,7 +26,6 @@
 //! twice what the recorded speeds allow plus 1 m (a teleport or a glitch).
 
 use std::collections::HashMap;
-use std::f64::consts::PI;
 use std::path::Path;
 
 use super::track::{MAX_SPEED, MIN_SPEED};
@@ -47,8 +46,6 @@ const REQUIRED: [&str; 8] = [
 /// The optional per-row wheelbase column.
 const WHEELBASE: &str = "wheelbase";
 
-/// Largest accepted |heading| (rad): one full turn plus a little slack for unwrapped angles.
-const MAX_HEADING: f64 = 2.0 * PI + 0.01;
 /// Largest accepted |steer_cmd| (rad) for a road-wheel angle.
 const MAX_STEER: f64 = 1.0;
 /// Largest accepted |accel_cmd| (m/s^2).
@@ -68,8 +65,8 @@ const MAX_PERIOD: f64 = 1.0;
 const MAX_COORDINATE: f64 = 1e7;
 /// A step's travelled distance may exceed what its recorded speeds allow by this factor plus
 /// [`JUMP_SLACK`] (position noise) before the row is called a jump (a teleport, a glitch).
-const JUMP_FACTOR: f64 = 2.0;
-const JUMP_SLACK: f64 = 1.0;
+pub(crate) const JUMP_FACTOR: f64 = 2.0;
+pub(crate) const JUMP_SLACK: f64 = 1.0;
 
 /// One vehicle's uniformly sampled recording.
 #[derive(Debug, Clone)]
@@ -461,7 +458,7 @@ fn check_range(source: &str, line: usize, name: &str, v: f64) -> Result<()> {
             "position {v:e} m is implausible; expected metres in a local frame with |{name}| <= \
              {MAX_COORDINATE}"
         )),
-        "heading" if v.abs() > MAX_HEADING => Some(format!(
+        "heading" if v.abs() > crate::geometry::MAX_HEADING_RAD => Some(format!(
             "heading {v} looks like degrees; expected radians with |heading| <= 2*pi"
         )),
         "steer_cmd" if v.abs() > MAX_STEER => Some(format!(

@@ -16,10 +16,8 @@
 use roxmltree::{Document, Node};
 
 use super::opendrive::*;
+use crate::geometry::MAX_HEADING_RAD;
 use crate::{Error, Result};
-
-/// Largest |hdg| of a plan-view geometry (rad): one turn plus slack for unwrapped angles.
-const MAX_HEADING_RAD: f64 = 2.0 * std::f64::consts::PI + 0.01;
 
 /// Widest plausible lane (m).
 const MAX_LANE_WIDTH: f64 = 10.0;
@@ -589,7 +587,7 @@ impl Ctx<'_, '_> {
             s: self.non_negative(node, "s")?,
             x: self.coordinate(node, "x")?,
             y: self.coordinate(node, "y")?,
-            hdg: self.req_f64(node, "hdg")?,
+            hdg: self.heading(node, "hdg")?,
             length: self.non_negative(node, "length")?,
             kind,
         };
@@ -597,18 +595,6 @@ impl Ctx<'_, '_> {
             return Err(self.err(
                 node,
                 "<geometry> attribute `length` is 0; expected metres > 0",
-            ));
-        }
-        // Radians, as the standard says; beyond one turn it is almost surely degrees (every
-        // other reader of rtr refuses headings the same way).
-        if geometry.hdg.abs() > MAX_HEADING_RAD {
-            return Err(self.err(
-                node,
-                format!(
-                    "<geometry> attribute `hdg` is {}: looks like degrees; expected radians, \
-                     |hdg| <= 2 pi",
-                    geometry.hdg
-                ),
             ));
         }
         if let Some(k) = polynomial_curvature(&geometry.kind, geometry.length)
@@ -625,6 +611,23 @@ impl Ctx<'_, '_> {
             ));
         }
         Ok(geometry)
+    }
+
+    /// A heading in radians, as the standard says: beyond one turn it is almost surely degrees
+    /// (every other reader of rtr refuses headings the same way).
+    fn heading(&self, node: Node, name: &str) -> Result<f64> {
+        let h = self.req_f64(node, name)?;
+        if h.abs() > MAX_HEADING_RAD {
+            return Err(self.err(
+                node,
+                format!(
+                    "<{}> attribute `{name}` is {h}: looks like degrees; expected radians, \
+                     |{name}| <= 2 pi",
+                    node.tag_name().name()
+                ),
+            ));
+        }
+        Ok(h)
     }
 
     /// A position (m) within [`MAX_COORDINATE`] of the origin.

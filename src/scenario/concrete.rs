@@ -12,6 +12,7 @@ use serde::{Deserialize, Serialize};
 
 use super::hero::{HeroAssignment, HeroScripts, PhaseProgress};
 use crate::data::a9::LANE_NODE_LENGTH;
+use crate::data::recordings::{JUMP_FACTOR, JUMP_SLACK};
 use crate::data::{AgentState, VehicleClass};
 use crate::error::{Error, Result};
 use crate::io::atomic_write;
@@ -107,9 +108,8 @@ pub struct ConcreteScenario {
 /// Longest and shortest plausible vehicle (m), and widths.
 const VEHICLE_LENGTH: std::ops::RangeInclusive<f64> = 1.0..=25.0;
 const VEHICLE_WIDTH: std::ops::RangeInclusive<f64> = 0.5..=5.0;
-/// Largest plausible |x|, |y| (m) and |heading| (rad: one turn plus slack for unwrapped angles).
+/// Largest plausible |x|, |y| (m).
 const MAX_COORDINATE: f64 = 1e7;
-const MAX_HEADING: f64 = 2.0 * std::f64::consts::PI + 0.01;
 
 /// One vehicle's size and states are physical: a size a vehicle can have, finite positions,
 /// headings in radians (degrees are refused), speeds in m/s.
@@ -139,7 +139,7 @@ fn check_agent(source: &str, i: usize, a: &ScenarioAgent) -> Result<()> {
                 format!("position ({x}, {y}): expected metres, |x|, |y| <= 1e7"),
             );
         }
-        if heading.is_nan() || heading.abs() > MAX_HEADING {
+        if heading.is_nan() || heading.abs() > crate::geometry::MAX_HEADING_RAD {
             return fail(
                 field,
                 format!(
@@ -157,11 +157,6 @@ fn check_agent(source: &str, i: usize, a: &ScenarioAgent) -> Result<()> {
     Ok(())
 }
 
-/// A step may cover this multiple of what its speeds allow, plus [`JUMP_SLACK_M`], before it
-/// is a jump (the rule of the recordings reader).
-const JUMP_FACTOR: f64 = 2.0;
-const JUMP_SLACK_M: f64 = 1.0;
-
 /// One vehicle's history moves as its speeds and headings say: no jump between two states
 /// (a teleport, a corrupted row), and speeds and headings that agree with the motion
 /// ([`crate::data::motion`]: km/h, degrees, a zeroed speed column).
@@ -178,7 +173,8 @@ fn check_history_motion(source: &str, i: usize, a: &ScenarioAgent, dt: f64) -> R
             let ((j, p), (k, q)) = (pair[0], pair[1]);
             let step = (k - j) as f64 * dt;
             let distance = (q[0] - p[0]).hypot(q[1] - p[1]);
-            let allowed = JUMP_FACTOR * p[3].max(q[3]) * step + JUMP_SLACK_M;
+            // The recordings reader's rule for a jump.
+            let allowed = JUMP_FACTOR * p[3].max(q[3]) * step + JUMP_SLACK;
             (distance > allowed).then(|| {
                 format!(
                     "states[{k}] moves {distance:.2} m in {step} s from states[{j}], but its \
