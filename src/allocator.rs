@@ -27,3 +27,20 @@ pub fn tune_for_tensors() {
         libc::mallopt(libc::M_TOP_PAD, TOP_PAD);
     }
 }
+
+/// Gives the heap's free pages back to the kernel (glibc only; a no-op elsewhere). Called once
+/// per training iteration. With the tuning above, freed tensor buffers stay in each worker
+/// thread's arena, so a run's resident memory stays at its largest step's: RTR runs sat at
+/// 14-21 GB for their whole length, and two of them side by side on this 23 GB machine were
+/// killed for memory. With a trim per iteration, a resumed RTR run's resident memory fell back
+/// to 0.7-3.5 GB between steps, so two runs only collide when both peak at once (one still
+/// did: a single step can need 20 GB, to be reduced at its source). One trim per iteration
+/// costs page faults once per step, not per op.
+pub fn release_free_memory() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: malloc_trim only returns unused heap memory to the kernel; it takes the
+    // allocator's own locks.
+    unsafe {
+        libc::malloc_trim(0);
+    }
+}

@@ -354,6 +354,7 @@ impl<'d> Trainer<'d> {
         let mut done_here = 0;
         while self.state.iteration < total && stop_after.is_none_or(|s| done_here < s) {
             let row = self.iteration(self.state.iteration, last_checkpoint.as_deref())?;
+            crate::allocator::release_free_memory();
             self.state.iteration += 1;
             done_here += 1;
             let finished = self.state.iteration == total;
