@@ -139,6 +139,87 @@ fn il_in_identified_dynamics_trains_and_the_physics_is_in_its_rollouts() {
     );
 }
 
+/// Perturbed starts turn and shift each controlled agent's history rigidly, within the
+/// configured bounds, and leave its logged future (the imitation target) and every other agent
+/// as recorded; the same draw gives the same scene.
+#[test]
+fn start_perturbation_moves_only_controlled_histories_rigidly() {
+    use rtr::scene::AgentRole;
+    use rtr::train::perturbation::StartPerturbation;
+    let scene = &data().nominal[0];
+    let p = StartPerturbation {
+        lateral_m: 0.5,
+        heading_rad: 0.02,
+    };
+    let out = p.apply(&[scene], &[3], 11, 7).remove(0);
+    assert_eq!(
+        out.agents,
+        p.apply(&[scene], &[3], 11, 7)[0].agents,
+        "same draw"
+    );
+    assert_ne!(
+        out.agents,
+        p.apply(&[scene], &[4], 11, 7)[0].agents,
+        "another slot"
+    );
+    let now = scene.current_step();
+    let mut moved = 0;
+    for (before, after) in scene.agents.iter().zip(&out.agents) {
+        assert_eq!(
+            before.states[now + 1..],
+            after.states[now + 1..],
+            "future kept"
+        );
+        if before.role != AgentRole::Controlled {
+            assert_eq!(before, after, "only controlled agents move");
+            continue;
+        }
+        let (b, a) = (before.states[now], after.states[now]);
+        let turn = a.heading - b.heading;
+        assert!(turn.abs() <= 0.02 + 1e-12, "turn {turn}");
+        let shift = (a.x - b.x).hypot(a.y - b.y);
+        assert!(shift <= 0.5 + 1e-9, "shift {shift}");
+        moved += usize::from(shift > 1e-6);
+        for k in 0..now {
+            if !before.valid[k] {
+                continue;
+            }
+            let d = |s: &[rtr::data::AgentState]| (s[k].x - s[now].x).hypot(s[k].y - s[now].y);
+            assert!((d(&before.states) - d(&after.states)).abs() < 1e-9, "rigid");
+            assert!((after.states[k].heading - before.states[k].heading - turn).abs() < 1e-12);
+            assert_eq!(after.states[k].speed, before.states[k].speed);
+        }
+    }
+    assert!(moved > 0, "some agent moved");
+}
+
+/// The imitation rollout starts from the perturbed states (IL and RTR): before any step, the
+/// imitation loss of the same initial state is higher when its start is off the logged path.
+#[test]
+fn imitation_rollouts_start_from_the_perturbed_states() {
+    for method in ["IL", "RTR"] {
+        let first_il = |perturb: bool| {
+            let dir = tempfile::tempdir().expect("temp dir");
+            let mut config = tiny(method, "", "");
+            config.alpha = 0.0;
+            config.run.max_iterations = Some(1);
+            config.ppo.value_warmup_iterations = 0;
+            if perturb {
+                config.imitation.perturbation = Some(rtr::train::perturbation::StartPerturbation {
+                    lateral_m: 1.0,
+                    heading_rad: 0.05,
+                });
+            }
+            train(config, dir.path(), false, None)[0].il_loss
+        };
+        let (plain, perturbed) = (first_il(false), first_il(true));
+        assert!(
+            perturbed > plain && plain > 0.0,
+            "{method}: IL loss {plain} from the logs, {perturbed} from perturbed starts"
+        );
+    }
+}
+
 #[test]
 fn rl_lowers_its_loss() {
     loss_falls("RL", "alpha = 0.5", "");
@@ -523,6 +604,15 @@ fn run_files_with_mistakes_are_named() {
     let err = TrainConfig::from_toml_str("method = \"IL\"\nalpha = 0.3\n", "il.toml")
         .expect_err("IL has no long-tail logs");
     assert!(err.to_string().contains("alpha"), "{err}");
+    let err = TrainConfig::from_toml_str(
+        "method = \"IL\"\n[imitation.perturbation]\nlateral_m = 5.0\nheading_rad = 0.01\n",
+        "il.toml",
+    )
+    .expect_err("a perturbation wider than a lane");
+    assert!(
+        err.to_string().contains("imitation.perturbation") && err.to_string().contains("lateral_m"),
+        "{err}"
+    );
 }
 
 #[test]

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use super::perturbation::StartPerturbation;
 use crate::backend::Backend;
 use crate::error::{Error, Result};
 use crate::io::parse_toml;
@@ -235,6 +236,10 @@ pub struct ImitationConfig {
     pub huber_delta: f64,
     /// Mean action (the paper's choice) or reparameterised samples in the IL rollout.
     pub action: ActionMode,
+    /// Perturb each controlled agent's history before the closed-loop IL rollout (IL and
+    /// RTR; the logged future stays the target); `None`: start from the logs as recorded.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub perturbation: Option<StartPerturbation>,
 }
 
 impl Default for ImitationConfig {
@@ -243,6 +248,7 @@ impl Default for ImitationConfig {
             minibatch: 32,
             huber_delta: 1.0,
             action: ActionMode::Mean,
+            perturbation: None,
         }
     }
 }
@@ -606,6 +612,9 @@ impl TrainConfig {
         }
         if !(p.value_weight.is_finite() && p.value_weight >= 0.0) {
             return fail("ppo.value_weight", "expected a finite weight >= 0");
+        }
+        if let Some(why) = self.imitation.perturbation.as_ref().and_then(|p| p.check()) {
+            return fail("imitation.perturbation", &why);
         }
         if self.imitation.minibatch == 0 {
             return fail("imitation.minibatch", "expected at least 1");

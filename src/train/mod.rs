@@ -7,7 +7,7 @@
 //! - [`sources`]: nominal and long-tail initial states and their alpha mixture;
 //! - [`experience`]: closed-loop rollouts with sampled actions, rewards, early termination;
 //! - [`gae`], [`ppo`]: advantages and the PPO losses; [`shaping`]: RL-Shaped's reward;
-//! - [`imitation`]: closed-loop IL (BPTT) and BC;
+//! - [`imitation`]: closed-loop IL (BPTT) and BC; [`perturbation`]: its perturbed start states;
 //! - [`gradients`]: global-norm clipping and multi-device sums; [`shards`]: scenes bucketed by
 //!   size and spread over worker devices;
 //! - [`checkpoint`], [`curves`]: atomic checkpoints and CSV curves;
@@ -21,6 +21,7 @@ pub mod experience;
 pub mod gae;
 pub mod gradients;
 pub mod imitation;
+pub mod perturbation;
 pub mod ppo;
 pub mod session;
 pub mod shaping;

@@ -6,8 +6,8 @@
 //!   then take one AdamW step per minibatch of `ppo.minibatch` initial states (for
 //!   `ppo.epochs` passes). Each step's loss is the method's: RL / RL-Shaped: L_RL;
 //!   BC+RL: L_BC + lambda L_RL; RTR: L_IL + lambda L_RL, where L_IL rolls the minibatch's
-//!   nominal scenes out again with the current parameters (mean action) and backpropagates
-//!   through time; KL-L: lambda L_RL + w KL(pi || pi_ref); KL-R: lambda L_RL with -w KL in
+//!   nominal scenes out again with the current parameters (mean action; from perturbed
+//!   start states when `imitation.perturbation` is set) and backpropagates through time; KL-L: lambda L_RL + w KL(pi || pi_ref); KL-R: lambda L_RL with -w KL in
 //!   the reward. L_RL = L_policy + c L_value (the value network has its own parameters and
 //!   optimizer, so the policy loss never reaches it).
 //! - BC and IL take one step per `imitation.minibatch` nominal initial states.
@@ -41,7 +41,7 @@ use super::shards::{BUCKET_SCENES, per_device, plan};
 use super::sources::{InitialState, Part, TrainingData};
 use crate::error::{Error, Result};
 use crate::model::{PolicyNetwork, ValueNetwork};
-use crate::scene::SceneBatch;
+use crate::scene::{Scene, SceneBatch};
 use crate::sim::{Dynamics, MapCaches};
 
 /// What a finished (or stopped) run reports.
@@ -624,13 +624,21 @@ impl<'d> Trainer<'d> {
             for w in &work {
                 let steps = rollout_steps(&w.part, cap);
                 if method.uses_closed_loop_il() && w.part.is_nominal() && !warming_up {
-                    let batch = match &w.experience {
-                        Some(e) => e.batch.clone(),
-                        None => SceneBatch::from_scenes(&w.part.scenes, &device.clone().inner())?,
+                    let perturbed = config
+                        .imitation
+                        .perturbation
+                        .map(|p| p.apply(&w.part.scenes, &w.part.slots, config.seed, i));
+                    let scenes: Vec<&Scene> = match &perturbed {
+                        Some(scenes) => scenes.iter().collect(),
+                        None => w.part.scenes.clone(),
+                    };
+                    let batch = match (&w.experience, &perturbed) {
+                        (Some(e), None) => e.batch.clone(),
+                        _ => SceneBatch::from_scenes(&scenes, &device.clone().inner())?,
                     };
                     let sum = closed_loop_imitation(
                         &policy,
-                        &w.part.scenes,
+                        &scenes,
                         &batch,
                         dynamics,
                         caches,
