@@ -527,6 +527,52 @@ fn a_warm_started_run_begins_from_its_initial_policy_and_warms_up_the_value() {
     assert!(err.to_string().contains("no-such-policy.bpk"), "{err}");
 }
 
+/// The sweep's first point, lambda = alpha = 0, is IL inside the RTR loop: the value loss is
+/// weighted by lambda, so during the value warm-up no term has weight and nothing may move;
+/// after it, only the imitation term trains the policy.
+#[test]
+fn rtr_at_lambda_zero_waits_out_the_warm_up_then_imitates() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let init = reference_policy(dir.path());
+    let mut config = tiny("RTR", "lambda = 0.0\nalpha = 0.0", "");
+    config.init = Some(rtr::train::InitConfig {
+        policy: init.clone().into(),
+        std_from_logs: false,
+    });
+    config.ppo.value_warmup_iterations = 1;
+    config.optimizer.epochs = 2;
+    let warming = dir.path().join("warming");
+    let mut first = config.clone();
+    first.optimizer.epochs = 1;
+    let rows = train(first.clone(), &warming, false, None);
+    assert_eq!(rows.len(), 1);
+    assert_eq!(
+        (
+            rows[0].loss,
+            rows[0].policy_grad_norm,
+            rows[0].value_grad_norm
+        ),
+        (0.0, 0.0, 0.0),
+        "{rows:?}"
+    );
+    #[allow(deprecated)]
+    let device = burn::prelude::Device::ndarray();
+    let initial = parameter_values(
+        &rtr::train::load_policy(Path::new(&init), &config.model, &device).expect("initial"),
+    );
+    assert_eq!(policy_values(&warming, &first), initial);
+
+    let run = dir.path().join("run");
+    let rows = train(config.clone(), &run, false, None);
+    let last = rows.last().expect("rows");
+    assert!(
+        last.il_loss > 0.0 && last.policy_grad_norm > 0.0,
+        "{rows:?}"
+    );
+    assert_eq!((last.policy_loss, last.value_loss), (0.0, 0.0), "{rows:?}");
+    assert_ne!(policy_values(&run, &config), initial);
+}
+
 /// Resume refuses what it cannot continue: a folder without a checkpoint (empty, or holding
 /// only a config), a `state.json` edited to claim another position, a tensor file changed
 /// after it was written; and a policy with NaN weights is refused by name wherever it is

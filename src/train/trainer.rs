@@ -614,11 +614,13 @@ impl<'d> Trainer<'d> {
             };
             let mut total = Tensor::<1>::zeros([1], device);
             let mut terms = TermValues::default();
+            let mut tracked = false;
             let mut add = |t: Tensor<1>, count: usize, weight: f64, slot: &mut f64| {
                 if count > 0 && weight != 0.0 {
                     let mean = t.div_scalar(count as f64);
                     *slot += mean.clone().into_scalar::<f64>();
                     total = total.clone() + mean.mul_scalar(weight);
+                    tracked = true;
                 }
             };
             for w in &work {
@@ -689,6 +691,18 @@ impl<'d> Trainer<'d> {
             terms.total = total.clone().into_scalar::<f64>();
             if !terms.total.is_finite() {
                 return Ok((None, terms, work));
+            }
+            if !tracked {
+                // No term has weight here (RTR at lambda 0 during the value warm-up: the value
+                // loss is weighted by lambda, the policy waits): nothing to differentiate.
+                return Ok((
+                    Some(ShardGradients {
+                        policy: GradientsParams::new(),
+                        value: uses_value.then(GradientsParams::new),
+                    }),
+                    terms,
+                    work,
+                ));
             }
             let mut grads = total.backward();
             let policy_grads = GradientsParams::from_module(&mut grads, &policy);
