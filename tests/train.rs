@@ -269,6 +269,32 @@ fn kl_loss_and_kl_reward_lower_their_loss() {
     loss_falls("KL-R", "alpha = 0.5", &section);
 }
 
+/// KL-L warm-started from its own reference: with the reference's sigma measured on the logs
+/// as the warm start's is, the first KL is zero; with the reference's own (never trained) sigma
+/// it is not, though both have the same mean.
+#[test]
+fn a_reference_with_sigma_from_the_logs_starts_at_zero_kl() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let reference = reference_policy(dir.path());
+    let first_kl = |calibrated: bool, out: &str| {
+        let section = format!(
+            "[reference]\ncheckpoint = \"{reference}\"\nweight = 1.0\nstd_from_logs = {calibrated}"
+        );
+        let mut config = tiny("KL-L", "alpha = 0.5", &section);
+        config.init = Some(rtr::train::InitConfig {
+            policy: reference.clone().into(),
+            std_from_logs: true,
+        });
+        config.ppo.value_warmup_iterations = 0;
+        let rows = train(config, &dir.path().join(out), false, Some(1));
+        rows[0].kl
+    };
+    let calibrated = first_kl(true, "calibrated");
+    assert!(calibrated.abs() < 1e-6, "{calibrated}");
+    let raw = first_kl(false, "raw");
+    assert!(raw > 0.1, "{raw}");
+}
+
 fn without_time(rows: &[CurveRow]) -> Vec<CurveRow> {
     rows.iter()
         .map(|r| CurveRow {
@@ -665,20 +691,23 @@ fn run_files_with_mistakes_are_named() {
 fn every_shipped_experiment_file_is_a_valid_run() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments");
     let mut methods = Vec::new();
-    for group in std::fs::read_dir(&root).expect("experiments/") {
-        let group = group.expect("entry").path();
-        if !group.is_dir() {
-            continue;
-        }
-        for file in std::fs::read_dir(&group).expect("group") {
-            let path = file.expect("entry").path();
-            if path.extension().is_some_and(|e| e == "toml") {
+    let mut folders = vec![root];
+    let mut files = 0;
+    while let Some(folder) = folders.pop() {
+        for entry in std::fs::read_dir(&folder).expect("experiments folder") {
+            let path = entry.expect("entry").path();
+            if path.is_dir() {
+                folders.push(path);
+            } else if path.extension().is_some_and(|e| e == "toml") {
                 let config = TrainConfig::from_toml_file(&path)
                     .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
                 methods.push(config.method);
+                files += 1;
             }
         }
     }
+    // experiments/main alone holds 12 (paper and small budget).
+    assert!(files > 12, "only {files} run files found");
     for method in rtr::train::Method::ALL {
         assert!(
             methods.contains(&method),

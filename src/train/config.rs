@@ -281,6 +281,12 @@ pub struct ReferenceConfig {
     /// Weight of the KL term (loss weight for KL-L, reward scale for KL-R).
     #[serde(default = "default_one")]
     pub weight: f64,
+    /// Give the reference the sigma measured on the logs, as `[init] std_from_logs` gives the
+    /// warm start. A closed-loop IL policy never trained its sigma, and the KL to a reference
+    /// with an arbitrary sigma is mostly that sigma's mismatch: it is large at the warm start
+    /// itself, and under KL-R agents learn to leave the road to end the penalty early.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub std_from_logs: bool,
 }
 
 /// A warm start. Only the policy is carried over: the value network, both optimizers and the

@@ -163,8 +163,9 @@ pub struct IterationTiming {
 const STD_SCENES: usize = 128;
 
 /// `policy` with the sigma of [`crate::train::config::InitConfig::std_from_logs`], said on
-/// stderr.
+/// stderr after `what` (the warm start or the KL reference).
 fn std_from_logs(
+    what: &str,
     policy: PolicyNetwork,
     data: &TrainingData,
     config: &TrainConfig,
@@ -175,8 +176,8 @@ fn std_from_logs(
     let (std, count) =
         super::imitation::logged_action_rms(&policy, &scenes, &config.limits, 16, device)?;
     eprintln!(
-        "init: sigma from the logs = {:.4} m/s^2, {:.5} rad (RMS error of the warm start's mean \
-         over {count} logged agent-steps of {} scenes)",
+        "{what}: sigma from the logs = {:.4} m/s^2, {:.5} rad (RMS error of its mean over \
+         {count} logged agent-steps of {} scenes)",
         std[0],
         std[1],
         scenes.len()
@@ -253,7 +254,7 @@ impl<'d> Trainer<'d> {
                     Some(init) => {
                         let policy = checkpoint::load_module(policy, &init.policy_file())?;
                         if init.std_from_logs {
-                            std_from_logs(policy, data, &config, &main)?
+                            std_from_logs("init", policy, data, &config, &main)?
                         } else {
                             policy
                         }
@@ -275,11 +276,15 @@ impl<'d> Trainer<'d> {
             }
         };
         let reference = match (&config.reference, config.method.uses_reference()) {
-            (Some(r), true) => Some(checkpoint::load_policy(
-                &r.checkpoint,
-                &config.model,
-                &main.clone().inner(),
-            )?),
+            (Some(r), true) => {
+                let device = main.clone().inner();
+                let policy = checkpoint::load_policy(&r.checkpoint, &config.model, &device)?;
+                Some(if r.std_from_logs {
+                    std_from_logs("reference", policy, data, &config, &device)?
+                } else {
+                    policy
+                })
+            }
             _ => None,
         };
         // Everything that can refuse the run is loaded before the run folder is written.
