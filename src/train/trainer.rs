@@ -34,7 +34,7 @@ use super::checkpoint::{self, LoopState};
 use super::config::{Method, PpoVariant, TrainConfig};
 use super::curves::{CurveRow, Curves};
 use super::experience::{CollectNetworks, CollectStats, Experience, RewardSettings, collect};
-use super::gradients::{clip_global_norm, sum_on_device};
+use super::gradients::{GraphLoss, GraphwiseGradients, clip_global_norm, sum_on_device};
 use super::imitation::{BcLabels, behaviour_cloning, closed_loop_imitation, imitation_count};
 use super::ppo::{AdvantageScale, ppo_terms};
 use super::shards::{BUCKET_SCENES, per_device, plan};
@@ -118,6 +118,28 @@ impl std::ops::AddAssign for TermValues {
         self.value += o.value;
         self.kl += o.kl;
         self.clipped += o.clipped;
+    }
+}
+
+/// Weights of the PPO terms in one update.
+#[derive(Debug, Clone, Copy)]
+struct PpoWeights {
+    policy: f64,
+    value: f64,
+    /// KL(pi || pi_ref) as a loss (KL-L).
+    kl: f64,
+}
+
+impl PpoWeights {
+    /// Some PPO term counts, so the stored observations are re-evaluated. RTR at lambda 0 has
+    /// none: building its unused graph alone took 24 GB on a minibatch of large US-101 scenes.
+    fn any(&self) -> bool {
+        self.policy != 0.0 || self.value != 0.0 || self.kl != 0.0
+    }
+
+    /// A gradient reaches the policy (not during the value warm-up).
+    fn policy_tracked(&self) -> bool {
+        self.policy != 0.0 || self.kl != 0.0
     }
 }
 
@@ -617,16 +639,17 @@ impl<'d> Trainer<'d> {
             } else {
                 (policy.clone().fork(device), value.clone().fork(device))
             };
-            let mut total = Tensor::<1>::zeros([1], device);
             let mut terms = TermValues::default();
-            let mut tracked = false;
-            let mut add = |t: Tensor<1>, count: usize, weight: f64, slot: &mut f64| {
-                if count > 0 && weight != 0.0 {
-                    let mean = t.div_scalar(count as f64);
-                    *slot += mean.clone().into_scalar::<f64>();
-                    total = total.clone() + mean.mul_scalar(weight);
-                    tracked = true;
+            let mut gradients = GraphwiseGradients::new(&policy, uses_value.then_some(&value));
+            // Each graph is differentiated as soon as it is built (only one alive at a time);
+            // a non-finite loss stops the step before any backward of it.
+            let mut differentiate = |loss: GraphLoss, terms: &mut TermValues| -> bool {
+                terms.total += loss.value;
+                if !loss.value.is_finite() {
+                    return false;
                 }
+                gradients.backward(loss);
+                true
             };
             for w in &work {
                 let steps = rollout_steps(&w.part, cap);
@@ -652,23 +675,39 @@ impl<'d> Trainer<'d> {
                         steps,
                         &config.imitation,
                     )?;
-                    add(sum, norm.il, policy_weight, &mut terms.il);
+                    let mut loss = GraphLoss::default();
+                    terms.il += loss.add(sum, norm.il, policy_weight).unwrap_or(0.0);
+                    if !differentiate(loss, &mut terms) {
+                        return Ok((None, terms, work));
+                    }
                 }
                 if let Some(labels) = w.labels.as_ref().filter(|_| !warming_up) {
                     let batch = match &w.experience {
                         Some(e) => e.batch.clone(),
                         None => SceneBatch::from_scenes(&w.part.scenes, &device.clone().inner())?,
                     };
-                    add(
-                        behaviour_cloning(&policy, &batch, labels),
-                        norm.bc,
-                        policy_weight,
-                        &mut terms.bc,
-                    );
+                    let mut loss = GraphLoss::default();
+                    let sum = behaviour_cloning(&policy, &batch, labels);
+                    terms.bc += loss.add(sum, norm.bc, policy_weight).unwrap_or(0.0);
+                    if !differentiate(loss, &mut terms) {
+                        return Ok((None, terms, work));
+                    }
                 }
-                if let Some(e) = &w.experience {
+                let weights = PpoWeights {
+                    policy: policy_weight * rl_weight,
+                    value: rl_weight * config.ppo.value_weight,
+                    kl: policy_weight * kl_weight,
+                };
+                if let Some(e) = w.experience.as_ref().filter(|_| weights.any()) {
+                    // The policy, value and KL terms share the policy's forward pass; during
+                    // the value warm-up it is taken without a graph (no gradient reaches it).
+                    let ppo_policy = if weights.policy_tracked() {
+                        policy.clone()
+                    } else {
+                        policy.clone().no_grad()
+                    };
                     let t = ppo_terms(
-                        &policy,
+                        &ppo_policy,
                         &value,
                         e,
                         &config.ppo,
@@ -676,50 +715,25 @@ impl<'d> Trainer<'d> {
                         method == Method::KlLoss,
                     );
                     terms.clipped += t.clipped;
-                    add(
-                        t.policy.sum,
-                        norm.ppo,
-                        policy_weight * rl_weight,
-                        &mut terms.policy,
-                    );
-                    add(
-                        t.value.sum,
-                        norm.ppo,
-                        rl_weight * config.ppo.value_weight,
-                        &mut terms.value,
-                    );
+                    let mut loss = GraphLoss::default();
+                    let policy_term = loss.add(t.policy.sum, norm.ppo, weights.policy);
+                    terms.policy += policy_term.unwrap_or(0.0);
+                    terms.value += loss
+                        .add(t.value.sum, norm.ppo, weights.value)
+                        .unwrap_or(0.0);
                     if let Some(kl) = t.kl {
-                        add(kl.sum, norm.kl, policy_weight * kl_weight, &mut terms.kl);
+                        let kl_term = loss.add(kl.sum, norm.kl, weights.kl);
+                        terms.kl += kl_term.unwrap_or(0.0);
+                    }
+                    if !differentiate(loss, &mut terms) {
+                        return Ok((None, terms, work));
                     }
                 }
             }
-            terms.total = total.clone().into_scalar::<f64>();
-            if !terms.total.is_finite() {
-                return Ok((None, terms, work));
-            }
-            if !tracked {
-                // No term has weight here (RTR at lambda 0 during the value warm-up: the value
-                // loss is weighted by lambda, the policy waits): nothing to differentiate.
-                return Ok((
-                    Some(ShardGradients {
-                        policy: GradientsParams::new(),
-                        value: uses_value.then(GradientsParams::new),
-                    }),
-                    terms,
-                    work,
-                ));
-            }
-            let mut grads = total.backward();
-            let policy_grads = GradientsParams::from_module(&mut grads, &policy);
-            let value_grads = uses_value.then(|| GradientsParams::from_module(&mut grads, &value));
-            Ok((
-                Some(ShardGradients {
-                    policy: policy_grads,
-                    value: value_grads,
-                }),
-                terms,
-                work,
-            ))
+            // Where no term had weight (RTR at lambda 0 during the value warm-up: the value
+            // loss is weighted by lambda, the policy waits) the gradients are empty.
+            let (policy, value) = gradients.finish();
+            Ok((Some(ShardGradients { policy, value }), terms, work))
         })?;
 
         let mut terms = TermValues::default();
