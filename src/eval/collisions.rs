@@ -65,6 +65,9 @@ pub struct FirstCollision {
     /// Speeds at the step before the contact (m/s).
     pub speed: f64,
     pub other_speed: f64,
+    /// Speeds at the start of the rollout (m/s): with the above, how much each had slowed.
+    pub start_speed: f64,
+    pub other_start_speed: f64,
 }
 
 /// Every measured agent's first collision, summarised as shares by the other vehicle's role
@@ -108,6 +111,45 @@ impl CollisionBreakdown {
             "after_offroad".into(),
             serde_json::json!(self.after_offroad_pct()),
         );
+        serde_json::Value::Object(o)
+    }
+
+    /// Mean speeds (m/s) of the first collisions of each role and side, at the start of the
+    /// rollout and one step before the contact, of the agent and of the other vehicle:
+    /// `{controlled: {ahead: {count, speed, other_speed, start_speed, other_start_speed}}}`,
+    /// groups without a collision left out. Whether a rear-end comes from a car that slowed
+    /// down or from one that did not brake for it is in these speeds, not in the rate.
+    pub fn speeds_json(&self) -> serde_json::Value {
+        let mut o = serde_json::Map::new();
+        for (role, name) in ROLES {
+            let mut sides = serde_json::Map::new();
+            for contact in Contact::ALL {
+                let group: Vec<&FirstCollision> = self
+                    .collisions
+                    .iter()
+                    .filter(|c| c.with == role && c.contact == contact)
+                    .collect();
+                if group.is_empty() {
+                    continue;
+                }
+                let mean = |f: fn(&FirstCollision) -> f64| {
+                    group.iter().map(|c| f(c)).sum::<f64>() / group.len() as f64
+                };
+                sides.insert(
+                    contact.name().to_string(),
+                    serde_json::json!({
+                        "count": group.len(),
+                        "speed": mean(|c| c.speed),
+                        "other_speed": mean(|c| c.other_speed),
+                        "start_speed": mean(|c| c.start_speed),
+                        "other_start_speed": mean(|c| c.other_start_speed),
+                    }),
+                );
+            }
+            if !sides.is_empty() {
+                o.insert(name.to_string(), serde_json::Value::Object(sides));
+            }
+        }
         serde_json::Value::Object(o)
     }
 }
@@ -181,6 +223,8 @@ pub(super) fn first_collisions(
                     after_offroad: (0..t).any(|s| offroad[row + s]),
                     speed: pose(b, i, t)[3],
                     other_speed: pose(b, j, t)[3],
+                    start_speed: pose(b, i, 0)[3],
+                    other_start_speed: pose(b, j, 0)[3],
                 });
             }
             found
@@ -197,5 +241,41 @@ mod tests {
         assert_eq!(Contact::from_offset(5.0, 1.0), Contact::Ahead);
         assert_eq!(Contact::from_offset(-5.0, -1.0), Contact::Behind);
         assert_eq!(Contact::from_offset(1.0, -2.0), Contact::Beside);
+    }
+
+    fn rear_end(speed: f64, other_speed: f64, start: f64, other_start: f64) -> FirstCollision {
+        FirstCollision {
+            scene: "s".into(),
+            agent: 0,
+            time_s: 2.0,
+            with: AgentRole::Controlled,
+            contact: Contact::Ahead,
+            after_offroad: false,
+            speed,
+            other_speed,
+            start_speed: start,
+            other_start_speed: other_start,
+        }
+    }
+
+    #[test]
+    fn collision_speeds_are_means_per_role_and_side_and_empty_groups_are_left_out() {
+        let breakdown = CollisionBreakdown {
+            agents: 10,
+            collisions: vec![
+                rear_end(20.0, 10.0, 30.0, 28.0),
+                rear_end(24.0, 6.0, 32.0, 30.0),
+            ],
+        };
+        let json = breakdown.speeds_json();
+        let group = &json["controlled"]["ahead"];
+        assert_eq!(group["count"], 2);
+        assert_eq!(group["speed"], 22.0);
+        assert_eq!(group["other_speed"], 8.0);
+        assert_eq!(group["start_speed"], 31.0);
+        assert_eq!(group["other_start_speed"], 29.0);
+        assert!(json["controlled"].get("behind").is_none());
+        assert!(json.get("hero").is_none());
+        assert_eq!(breakdown.share(AgentRole::Controlled, Contact::Ahead), 20.0);
     }
 }

@@ -47,6 +47,7 @@ pub fn set_json(r: &SetResult) -> Value {
     }
     if let Some(c) = &r.collisions {
         o.insert("first_collision_pct".into(), c.json());
+        o.insert("first_collision_speeds".into(), c.speeds_json());
     }
     if let Some(realism) = &r.realism {
         let names = [
