@@ -142,4 +142,49 @@ mod tests {
         let want = (2.0f64).ln() + 1.25 / 2.0 - 0.5;
         assert!((values(p.kl(&q))[0] as f64 - want).abs() < 1e-5);
     }
+
+    /// KL-R's penalty is log p(a) - log q(a) at the sampled action (`train::experience`): its
+    /// mean is KL(p || q), and the score-function gradient PPO takes of it, E[d log p(a)/d mu *
+    /// (log p(a) - log q(a))], is the KL's own gradient (mu_p - mu_q) / sigma_q^2 per control.
+    /// The exact KL as the penalty would give that gradient zero: it does not depend on a.
+    #[test]
+    fn the_sampled_log_ratio_has_the_kl_as_mean_and_its_gradient_as_score_gradient() {
+        #[allow(deprecated)]
+        let device = Device::ndarray();
+        let n = 200_000;
+        let normal = |mean: [f32; 2], sigma: [f32; 2]| ActionDistribution {
+            mean: Tensor::<3>::from_data(TensorData::new(mean.to_vec(), [1, 1, 2]), &device)
+                .repeat_dim(1, n),
+            log_std: Tensor::<3>::from_data(
+                TensorData::new(sigma.iter().map(|s| s.ln()).collect::<Vec<_>>(), [1, 1, 2]),
+                &device,
+            )
+            .repeat_dim(1, n),
+        };
+        let (mean_p, sigma_p) = ([0.5f32, 0.0], [1.0f32, 0.2]);
+        let (mean_q, sigma_q) = ([0.0f32, 0.1], [1.5f32, 0.25]);
+        let (p, q) = (normal(mean_p, sigma_p), normal(mean_q, sigma_q));
+        device.seed(7);
+        let actions = p.sample();
+        let ratio = values(p.log_prob(actions.clone()) - q.log_prob(actions.clone()));
+        let a = values(actions);
+        let kl = values(p.kl(&q))[0] as f64;
+        let mean_ratio = ratio.iter().map(|&r| r as f64).sum::<f64>() / n as f64;
+        assert!(
+            (mean_ratio - kl).abs() < 0.02 * (1.0 + kl),
+            "{mean_ratio} vs {kl}"
+        );
+        for d in 0..2 {
+            let (mu, sigma) = (mean_p[d] as f64, sigma_p[d] as f64);
+            let score_gradient = (0..n)
+                .map(|k| (a[2 * k + d] as f64 - mu) / (sigma * sigma) * ratio[k] as f64)
+                .sum::<f64>()
+                / n as f64;
+            let want = (mu - mean_q[d] as f64) / (sigma_q[d] as f64).powi(2);
+            assert!(
+                (score_gradient - want).abs() < 0.05 * (1.0 + want.abs()),
+                "control {d}: {score_gradient} vs {want}"
+            );
+        }
+    }
 }

@@ -132,7 +132,8 @@ struct PpoWeights {
 
 impl PpoWeights {
     /// Some PPO term counts, so the stored observations are re-evaluated. RTR at lambda 0 has
-    /// none: building its unused graph alone took 24 GB on a minibatch of large US-101 scenes.
+    /// none, and building the unused graph anyway got its run killed for memory (24.4 GB during
+    /// the value warm-up, when nothing else is differentiated).
     fn any(&self) -> bool {
         self.policy != 0.0 || self.value != 0.0 || self.kl != 0.0
     }
@@ -651,6 +652,11 @@ impl<'d> Trainer<'d> {
                 gradients.backward(loss);
                 true
             };
+            let weights = PpoWeights {
+                policy: policy_weight * rl_weight,
+                value: rl_weight * config.ppo.value_weight,
+                kl: policy_weight * kl_weight,
+            };
             for w in &work {
                 let steps = rollout_steps(&w.part, cap);
                 if method.uses_closed_loop_il() && w.part.is_nominal() && !warming_up {
@@ -693,11 +699,6 @@ impl<'d> Trainer<'d> {
                         return Ok((None, terms, work));
                     }
                 }
-                let weights = PpoWeights {
-                    policy: policy_weight * rl_weight,
-                    value: rl_weight * config.ppo.value_weight,
-                    kl: policy_weight * kl_weight,
-                };
                 if let Some(e) = w.experience.as_ref().filter(|_| weights.any()) {
                     // The policy, value and KL terms share the policy's forward pass; during
                     // the value warm-up it is taken without a graph (no gradient reaches it).
