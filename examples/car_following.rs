@@ -1,0 +1,271 @@
+//! `cargo run --release --example car_following -- CHECKPOINT...`: does a trained policy brake
+//! for a slower car ahead?
+//!
+//! On a generated straight 3 x 3.75 m road, a policy-driven follower starts in the middle lane
+//! behind a replayed leader (it follows its scripted log, whatever the follower does), both
+//! with a straight constant-speed 2 s history. The leader drives at 28 m/s, either steadily or
+//! braking at 4 m/s^2 to 16 m/s from the first simulated step; the follower starts 0, 4 or 8
+//! m/s faster, 20, 40 or 60 m behind (bumper to bumper). Simulated for 6 s with the mean action
+//! (as `rtr eval`), on the CPU (Flex). Printed per policy and case: the follower's mean
+//! acceleration over the first 2 s, the smallest bumper gap (negative: the boxes overlapped
+//! along the lane) and the lateral offset from its lane centre at 6 s. A follower that brakes
+//! for what is ahead shows negative accelerations growing with the closing speed and the
+//! leader's braking, and keeps the gap positive. `--idm` adds the IDM reference driver.
+//!
+//! This is the long-tail collision of `experiments/main/recipe/results.md` in isolation: there
+//! the cars that ran into a slower car ahead started about 7 m/s faster and held their speed.
+
+use std::path::Path;
+use std::sync::Arc;
+
+use rtr::data::{AgentState, VehicleClass};
+use rtr::eval::evaluate::simulate_set;
+use rtr::eval::{EvalConfig, EvalPolicy, EvalScenes, EvalSet, IdmBaseline, TrainedPolicy};
+use rtr::map::{LaneGraph, Map};
+use rtr::scene::{AgentRole, Scene, SceneAgent};
+use rtr::sim::Dynamics;
+
+const DT: f64 = 0.5;
+const HISTORY_STEPS: usize = 4;
+const FUTURE_STEPS: usize = 12;
+const LENGTH_M: f64 = 4.6;
+const WIDTH_M: f64 = 1.9;
+const LANE_WIDTH_M: f64 = 3.75;
+const LEADER_SPEED: f64 = 28.0;
+const CLOSING_SPEEDS: [f64; 3] = [0.0, 4.0, 8.0];
+const GAPS_M: [f64; 3] = [20.0, 40.0, 60.0];
+/// The braking leader's deceleration and the speed it stops braking at.
+const LEADER_BRAKING: f64 = 4.0;
+const LEADER_BRAKED_SPEED: f64 = 16.0;
+/// Where the follower starts along the road (m): room behind for its history.
+const FOLLOWER_START_M: f64 = 100.0;
+/// Steps over which the early acceleration is measured (2 s).
+const EARLY_STEPS: usize = 4;
+
+/// One probe case.
+#[derive(Debug, Clone, Copy)]
+struct Case {
+    closing: f64,
+    gap: f64,
+    leader_brakes: bool,
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    rtr::allocator::tune_for_tensors();
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let with_idm = args.iter().any(|a| a == "--idm");
+    let checkpoints: Vec<&String> = args.iter().filter(|a| *a != "--idm").collect();
+    if checkpoints.is_empty() && !with_idm {
+        return Err(
+            "usage: cargo run --release --example car_following -- [--idm] CHECKPOINT...".into(),
+        );
+    }
+    let device = rtr::backend::Backend::Flex.device(false)?;
+    let map = Arc::new(Map::from_opendrive(
+        &rtr::map::straight(3, LANE_WIDTH_M, 900.0)?,
+        "straight 3 x 3.75 m",
+    )?);
+    let graph = Arc::new(LaneGraph::build(&map, 10.0));
+    let lane_y = middle_lane_centre(&map)?;
+    let cases: Vec<Case> = [false, true]
+        .into_iter()
+        .flat_map(|leader_brakes| {
+            CLOSING_SPEEDS.into_iter().flat_map(move |closing| {
+                GAPS_M.into_iter().map(move |gap| Case {
+                    closing,
+                    gap,
+                    leader_brakes,
+                })
+            })
+        })
+        .collect();
+    let set = EvalScenes {
+        set: EvalSet::Nominal,
+        scenes: cases
+            .iter()
+            .enumerate()
+            .map(|(k, case)| scene(k, case, &map, &graph, lane_y))
+            .collect(),
+        scenarios: Vec::new(),
+    };
+    let config = EvalConfig {
+        resamples: 10,
+        realism_samples: 0,
+        ..Default::default()
+    };
+
+    let mut drivers: Vec<(String, Box<dyn EvalPolicy>, Dynamics)> = Vec::new();
+    for path in checkpoints {
+        let policy = TrainedPolicy::load(Path::new(path), &device)?;
+        drivers.push((path.clone(), Box::new(policy.network), policy.dynamics));
+    }
+    if with_idm {
+        let idm = IdmBaseline {
+            params: Default::default(),
+            limits: Default::default(),
+        };
+        drivers.push(("IDM".into(), Box::new(idm), Dynamics::bicycle(DT)));
+    }
+
+    println!(
+        "| policy | leader | closing speed (m/s) | gap (m) | follower accel, first 2 s (m/s^2) | smallest gap (m) | lateral offset at 6 s (m) |"
+    );
+    println!("|---|---|---|---|---|---|---|");
+    let mut summaries = Vec::new();
+    for (name, policy, dynamics) in &drivers {
+        let simulated = simulate_set(policy.as_ref(), dynamics, &set, &device, &config, None)?;
+        let measured: Vec<Following> = simulated.iter().map(|s| measure(s, lane_y)).collect();
+        summaries.push((name.clone(), summary(&cases, &measured)));
+        for (case, m) in cases.iter().zip(&measured) {
+            println!(
+                "| {name} | {} | {:.0} | {:.0} | {:+.2} | {:.1} | {:.2} |",
+                if case.leader_brakes {
+                    "brakes 4 m/s^2"
+                } else {
+                    "steady"
+                },
+                case.closing,
+                case.gap,
+                m.early_accel,
+                m.smallest_gap,
+                m.lateral_offset
+            );
+        }
+    }
+    println!();
+    println!(
+        "| policy | accel, steady leader, closing 0 / 4 / 8 m/s (m/s^2) | accel, braking leader, closing 0 / 4 / 8 m/s (m/s^2) | cases the gap closed to 0 or below |"
+    );
+    println!("|---|---|---|---|");
+    for (name, s) in summaries {
+        let show = |a: &[f64; 3]| format!("{:+.2} / {:+.2} / {:+.2}", a[0], a[1], a[2]);
+        println!(
+            "| {name} | {} | {} | {} of {} |",
+            show(&s.steady),
+            show(&s.braking),
+            s.closed,
+            cases.len()
+        );
+    }
+    Ok(())
+}
+
+/// Per policy: the early acceleration per closing speed (mean over the gaps), for each leader,
+/// and how many cases ended with the gap closed.
+struct Summary {
+    steady: [f64; 3],
+    braking: [f64; 3],
+    closed: usize,
+}
+
+fn summary(cases: &[Case], measured: &[Following]) -> Summary {
+    let mean = |brakes: bool, closing: f64| {
+        let picked: Vec<f64> = cases
+            .iter()
+            .zip(measured)
+            .filter(|(c, _)| c.leader_brakes == brakes && c.closing == closing)
+            .map(|(_, m)| m.early_accel)
+            .collect();
+        picked.iter().sum::<f64>() / picked.len().max(1) as f64
+    };
+    Summary {
+        steady: CLOSING_SPEEDS.map(|c| mean(false, c)),
+        braking: CLOSING_SPEEDS.map(|c| mean(true, c)),
+        closed: measured.iter().filter(|m| m.smallest_gap <= 0.0).count(),
+    }
+}
+
+/// The y of the middle lane's centre (the generated straight road runs along +x).
+fn middle_lane_centre(map: &Map) -> Result<f64, Box<dyn std::error::Error>> {
+    let mut centres: Vec<f64> = map
+        .lanes()
+        .iter()
+        .filter(|l| l.is_graph_lane() && l.is_drivable())
+        .map(|l| l.centerline.iter().map(|p| p[1]).sum::<f64>() / l.centerline.len() as f64)
+        .collect();
+    centres.sort_by(f64::total_cmp);
+    centres
+        .get(centres.len() / 2)
+        .copied()
+        .ok_or_else(|| "the straight road has no drivable lane".into())
+}
+
+/// Constant-speed history, then the leader's script (steady or braking) for the future.
+fn leader_states(case: &Case, start_x: f64, y: f64) -> Vec<AgentState> {
+    let mut states = Vec::with_capacity(HISTORY_STEPS + FUTURE_STEPS + 1);
+    let mut x = start_x - LEADER_SPEED * DT * HISTORY_STEPS as f64;
+    let mut speed = LEADER_SPEED;
+    for k in 0..=HISTORY_STEPS + FUTURE_STEPS {
+        let braking = case.leader_brakes && k >= HISTORY_STEPS && speed > LEADER_BRAKED_SPEED;
+        let accel = if braking { -LEADER_BRAKING } else { 0.0 };
+        states.push(AgentState {
+            x,
+            y,
+            heading: 0.0,
+            speed,
+            accel,
+        });
+        let next = (speed + accel * DT).max(LEADER_BRAKED_SPEED.min(speed));
+        x += 0.5 * (speed + next) * DT;
+        speed = next;
+    }
+    states
+}
+
+fn scene(k: usize, case: &Case, map: &Arc<Map>, graph: &Arc<LaneGraph>, y: f64) -> Scene {
+    let follower_speed = LEADER_SPEED + case.closing;
+    let follower: Vec<AgentState> = (0..=HISTORY_STEPS + FUTURE_STEPS)
+        .map(|i| AgentState {
+            x: FOLLOWER_START_M + follower_speed * DT * (i as f64 - HISTORY_STEPS as f64),
+            y,
+            heading: 0.0,
+            speed: follower_speed,
+            accel: 0.0,
+        })
+        .collect();
+    let leader = leader_states(case, FOLLOWER_START_M + case.gap + LENGTH_M, y);
+    let agent = |id: usize, role: AgentRole, states: Vec<AgentState>| SceneAgent {
+        track_id: id,
+        class: VehicleClass::Car,
+        length: LENGTH_M,
+        width: WIDTH_M,
+        role,
+        valid: vec![true; states.len()],
+        states,
+    };
+    Scene {
+        id: format!("following-{k}"),
+        t0: 0.0,
+        dt: DT,
+        history_steps: HISTORY_STEPS,
+        future_steps: FUTURE_STEPS,
+        map: map.clone(),
+        lane_graph: graph.clone(),
+        agents: vec![
+            agent(0, AgentRole::Controlled, follower),
+            agent(1, AgentRole::Replayed, leader),
+        ],
+    }
+}
+
+struct Following {
+    early_accel: f64,
+    smallest_gap: f64,
+    lateral_offset: f64,
+}
+
+/// The follower (agent 0) against the leader (agent 1) over the simulated steps.
+fn measure(scene: &Scene, lane_y: f64) -> Following {
+    let (follower, leader) = (&scene.agents[0].states, &scene.agents[1].states);
+    let now = HISTORY_STEPS;
+    let early =
+        (follower[now + EARLY_STEPS].speed - follower[now].speed) / (EARLY_STEPS as f64 * DT);
+    let smallest_gap = (now..follower.len())
+        .map(|t| leader[t].x - follower[t].x - LENGTH_M)
+        .fold(f64::INFINITY, f64::min);
+    Following {
+        early_accel: early,
+        smallest_gap,
+        lateral_offset: follower[follower.len() - 1].y - lane_y,
+    }
+}
