@@ -8,7 +8,8 @@
 //!   BC+RL: L_BC + lambda L_RL; RTR: L_IL + lambda L_RL, where L_IL rolls the minibatch's
 //!   nominal scenes out again with the current parameters (mean action; from perturbed
 //!   start states when `imitation.perturbation` is set) and backpropagates through time;
-//!   KL-L: lambda L_RL + w KL(pi || pi_ref); KL-R: lambda L_RL with -w KL in the reward. L_RL = L_policy + c L_value (the value network has its own parameters and
+//!   KL-L: lambda L_RL + w KL(pi || pi_ref); KL-R: lambda L_RL with -w (log pi(a) - log pi_ref(a))
+//!   in the reward. L_RL = L_policy + c L_value (the value network has its own parameters and
 //!   optimizer, so the policy loss never reaches it).
 //! - BC and IL take one step per `imitation.minibatch` nominal initial states.
 //!
