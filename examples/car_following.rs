@@ -8,7 +8,8 @@
 //! m/s faster, 20, 40 or 60 m behind (bumper to bumper). Simulated for 6 s with the mean action
 //! (as `rtr eval`), on the CPU (Flex). Printed per policy and case: the follower's mean
 //! acceleration over the first 2 s, the smallest bumper gap (negative: the boxes overlapped
-//! along the lane) and the lateral offset from its lane centre at 6 s. A follower that brakes
+//! along the lane), whether the two boxes ever overlapped (a contact) and the lateral offset
+//! from its lane centre at 6 s. A follower that brakes
 //! for what is ahead shows negative accelerations growing with the closing speed and the
 //! leader's braking, and keeps the gap positive. `--idm` adds the IDM reference driver.
 //!
@@ -21,6 +22,7 @@ use std::sync::Arc;
 use rtr::data::{AgentState, VehicleClass};
 use rtr::eval::evaluate::simulate_set;
 use rtr::eval::{EvalConfig, EvalPolicy, EvalScenes, EvalSet, IdmBaseline, TrainedPolicy};
+use rtr::geometry::OrientedBox;
 use rtr::map::{LaneGraph, Map};
 use rtr::scene::{AgentRole, Scene, SceneAgent};
 use rtr::sim::Dynamics;
@@ -53,6 +55,9 @@ struct Case {
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     rtr::allocator::tune_for_tensors();
     let args: Vec<String> = std::env::args().skip(1).collect();
+    if let Some(flag) = args.iter().find(|a| a.starts_with("--") && *a != "--idm") {
+        return Err(format!("unknown option {flag}: the only option is --idm").into());
+    }
     let with_idm = args.iter().any(|a| a == "--idm");
     let checkpoints: Vec<&String> = args.iter().filter(|a| *a != "--idm").collect();
     if checkpoints.is_empty() && !with_idm {
@@ -108,9 +113,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
 
     println!(
-        "| policy | leader | closing speed (m/s) | gap (m) | follower accel, first 2 s (m/s^2) | smallest gap (m) | lateral offset at 6 s (m) |"
+        "| policy | leader | closing speed (m/s) | gap (m) | follower accel, first 2 s (m/s^2) | smallest gap (m) | lateral offset at 6 s (m) | contact |"
     );
-    println!("|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|");
     let mut summaries = Vec::new();
     for (name, policy, dynamics) in &drivers {
         let simulated = simulate_set(policy.as_ref(), dynamics, &set, &device, &config, None)?;
@@ -118,7 +123,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         summaries.push((name.clone(), summary(&cases, &measured)));
         for (case, m) in cases.iter().zip(&measured) {
             println!(
-                "| {name} | {} | {:.0} | {:.0} | {:+.2} | {:.1} | {:.2} |",
+                "| {name} | {} | {:.0} | {:.0} | {:+.2} | {:.1} | {:.2} | {} |",
                 if case.leader_brakes {
                     "brakes 4 m/s^2"
                 } else {
@@ -128,13 +133,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 case.gap,
                 m.early_accel,
                 m.smallest_gap,
-                m.lateral_offset
+                m.lateral_offset,
+                if m.contact { "yes" } else { "no" }
             );
         }
     }
     println!();
     println!(
-        "| policy | accel, steady leader, closing 0 / 4 / 8 m/s (m/s^2) | accel, braking leader, closing 0 / 4 / 8 m/s (m/s^2) | cases the gap closed to 0 or below |"
+        "| policy | accel, steady leader, closing 0 / 4 / 8 m/s (m/s^2) | accel, braking leader, closing 0 / 4 / 8 m/s (m/s^2) | cases with a contact |"
     );
     println!("|---|---|---|---|");
     for (name, s) in summaries {
@@ -143,7 +149,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "| {name} | {} | {} | {} of {} |",
             show(&s.steady),
             show(&s.braking),
-            s.closed,
+            s.contacts,
             cases.len()
         );
     }
@@ -151,11 +157,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 }
 
 /// Per policy: the early acceleration per closing speed (mean over the gaps), for each leader,
-/// and how many cases ended with the gap closed.
+/// and in how many cases the follower touched the leader.
 struct Summary {
     steady: [f64; 3],
     braking: [f64; 3],
-    closed: usize,
+    contacts: usize,
 }
 
 fn summary(cases: &[Case], measured: &[Following]) -> Summary {
@@ -171,7 +177,7 @@ fn summary(cases: &[Case], measured: &[Following]) -> Summary {
     Summary {
         steady: CLOSING_SPEEDS.map(|c| mean(false, c)),
         braking: CLOSING_SPEEDS.map(|c| mean(true, c)),
-        closed: measured.iter().filter(|m| m.smallest_gap <= 0.0).count(),
+        contacts: measured.iter().filter(|m| m.contact).count(),
     }
 }
 
@@ -251,6 +257,9 @@ fn scene(k: usize, case: &Case, map: &Arc<Map>, graph: &Arc<LaneGraph>, y: f64) 
 struct Following {
     early_accel: f64,
     smallest_gap: f64,
+    /// The two boxes overlapped at some simulated step (a rear-end or a side contact; a car
+    /// that passes in the next lane has a negative gap but no contact).
+    contact: bool,
     lateral_offset: f64,
 }
 
@@ -263,9 +272,13 @@ fn measure(scene: &Scene, lane_y: f64) -> Following {
     let smallest_gap = (now..follower.len())
         .map(|t| leader[t].x - follower[t].x - LENGTH_M)
         .fold(f64::INFINITY, f64::min);
+    let footprint = |a: &AgentState| OrientedBox::new([a.x, a.y], a.heading, LENGTH_M, WIDTH_M);
+    let contact =
+        (now..follower.len()).any(|t| footprint(&follower[t]).overlaps(&footprint(&leader[t])));
     Following {
         early_accel: early,
         smallest_gap,
+        contact,
         lateral_offset: follower[follower.len() - 1].y - lane_y,
     }
 }
