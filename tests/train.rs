@@ -284,6 +284,7 @@ fn a_reference_with_sigma_from_the_logs_starts_at_zero_kl() {
         config.init = Some(rtr::train::InitConfig {
             policy: reference.clone().into(),
             std_from_logs: true,
+            add_agent_edge_motion: false,
         });
         config.ppo.value_warmup_iterations = 0;
         let rows = train(config, &dir.path().join(out), false, Some(1));
@@ -470,6 +471,7 @@ fn a_warm_started_run_begins_from_its_initial_policy_and_warms_up_the_value() {
         config.init = Some(rtr::train::InitConfig {
             policy: init.clone().into(),
             std_from_logs: false,
+            add_agent_edge_motion: false,
         });
         config.ppo.value_warmup_iterations = warmup;
         config.optimizer.epochs = 2;
@@ -505,6 +507,7 @@ fn a_warm_started_run_begins_from_its_initial_policy_and_warms_up_the_value() {
     config.init = Some(rtr::train::InitConfig {
         policy: init.clone().into(),
         std_from_logs: true,
+        add_agent_edge_motion: false,
     });
     config.ppo.value_warmup_iterations = 2;
     config.optimizer.epochs = 2;
@@ -545,6 +548,7 @@ fn a_warm_started_run_begins_from_its_initial_policy_and_warms_up_the_value() {
     missing.init = Some(rtr::train::InitConfig {
         policy: dir.path().join("no-such-policy.bpk"),
         std_from_logs: false,
+        add_agent_edge_motion: false,
     });
     let workers = devices(&missing).expect("devices");
     let err = Trainer::new(missing, data(), workers, &dir.path().join("x"), false)
@@ -564,6 +568,7 @@ fn rtr_at_lambda_zero_waits_out_the_warm_up_then_imitates() {
     config.init = Some(rtr::train::InitConfig {
         policy: init.clone().into(),
         std_from_logs: false,
+        add_agent_edge_motion: false,
     });
     config.ppo.value_warmup_iterations = 1;
     config.optimizer.epochs = 2;

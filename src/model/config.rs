@@ -45,6 +45,11 @@ pub struct ModelConfig {
     /// Range of log sigma, relative to `action_scale`: sigma = scale * exp(value in range).
     #[serde(deserialize_with = "exactly_two")]
     pub log_std_range: [f64; 2],
+    /// Not in the paper: agent <- agent edges also carry the sender's motion relative to the
+    /// receiver (relative velocity, range rate; [`super::relative_motion`]), not only its pose.
+    /// Off by default (the paper's edges; every model trained before it loads unchanged).
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub agent_edge_motion: bool,
 }
 
 impl Default for ModelConfig {
@@ -63,6 +68,7 @@ impl Default for ModelConfig {
             distance_wavelengths: vec![4.0, 16.0, 64.0, 256.0],
             action_scale: [2.0, 0.02],
             log_std_range: [-4.0, 1.0],
+            agent_edge_motion: false,
         }
     }
 }

@@ -99,7 +99,7 @@ impl AgentInput {
             .expand([b, n, h, 2]);
         let mask = batch.agent_mask.clone().bool_and(now.present.clone());
         let edges = InteractionEdges::build(
-            &pose_now,
+            &now.poses,
             &mask,
             &batch.lane_poses,
             &batch.lane_mask,

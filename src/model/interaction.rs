@@ -16,6 +16,7 @@ use super::config::ModelConfig;
 use super::input::LaneInput;
 use super::lane_encoder::{LANE_RELATIONS, lane_messages};
 use super::message::{EdgeMessage, NodeUpdate};
+use super::relative_motion::relative_motion;
 use super::relative_pose::relative_pose;
 
 /// Distance given to padded or absent nodes so nearest-neighbour choices rank them last.
@@ -24,7 +25,8 @@ const FAR: f64 = 1e9;
 /// The agent-side edges of one forward pass.
 #[derive(Debug, Clone)]
 pub struct InteractionEdges {
-    /// Agent <- agent, dense: `[B, N, N, P]` pose and `[B, N, N]` mask (no self edges).
+    /// Agent <- agent, dense: `[B, N, N, P]` pose (and relative motion with
+    /// `agent_edge_motion`) and `[B, N, N]` mask (no self edges).
     agent_agent_pose: Tensor<4>,
     agent_agent_mask: Tensor<3, Bool>,
     /// Agent <- its closest lane nodes: `[B, N, K]`.
@@ -86,15 +88,16 @@ impl Nearest {
 }
 
 impl InteractionEdges {
-    /// The edges of agents at `agent_pose` / `agent_mask` (`[B, N, 3]` / `[B, N]`) on the lane
-    /// graph at `lane_pose` / `lane_mask` (`[B, L, 3]` / `[B, L]`).
+    /// The edges of agents in `agent_state` / `agent_mask` (`[B, N, 4]`: x, y, heading, speed /
+    /// `[B, N]`) on the lane graph at `lane_pose` / `lane_mask` (`[B, L, 3]` / `[B, L]`).
     pub fn build(
-        agent_pose: &Tensor<3>,
+        agent_state: &Tensor<3>,
         agent_mask: &Tensor<2, Bool>,
         lane_pose: &Tensor<3>,
         lane_mask: &Tensor<2, Bool>,
         config: &ModelConfig,
     ) -> Self {
+        let agent_pose = &agent_state.clone().narrow(2, 0, 3);
         let [b, n, _] = agent_pose.dims();
         let l = lane_mask.dims()[1];
         let wavelengths = &config.distance_wavelengths;
@@ -105,14 +108,17 @@ impl InteractionEdges {
             mask.clone().unsqueeze_dim::<3>(dim).expand(shape)
         };
 
-        // Agent <- agent: receiver poses along dim 2 against sender poses along dim 1.
-        let poses = |dim: usize| {
-            agent_pose
-                .clone()
-                .unsqueeze_dim::<4>(dim)
-                .expand([b, n, n, 3])
+        // Agent <- agent: receivers along dim 2 against senders along dim 1.
+        let pairs = |states: &Tensor<3>, dim: usize| {
+            let [_, _, c] = states.dims();
+            states.clone().unsqueeze_dim::<4>(dim).expand([b, n, n, c])
         };
-        let agent_agent_pose = relative_pose(poses(2), poses(1), wavelengths);
+        let mut agent_agent_pose =
+            relative_pose(pairs(agent_pose, 2), pairs(agent_pose, 1), wavelengths);
+        if config.agent_edge_motion {
+            let motion = relative_motion(pairs(agent_state, 2), pairs(agent_state, 1));
+            agent_agent_pose = Tensor::cat(vec![agent_agent_pose, motion], 3);
+        }
         let not_self = Tensor::<2, Int>::eye(n, &device)
             .equal_elem(0)
             .unsqueeze_dim::<3>(0)
@@ -251,12 +257,20 @@ pub struct HeteroGnn {
 }
 
 impl HeteroGnn {
-    pub fn new(hidden: usize, rounds: usize, pose_features: usize, device: &Device) -> Self {
+    /// `pose_features`: width of every edge's relative pose; `agent_edge_features`: of the
+    /// agent <- agent edges' (the pose, with relative motion when configured).
+    pub fn new(
+        hidden: usize,
+        rounds: usize,
+        pose_features: usize,
+        agent_edge_features: usize,
+        device: &Device,
+    ) -> Self {
         let message = || EdgeMessage::new(hidden, pose_features, device);
         Self {
             agent_rounds: (0..rounds)
                 .map(|_| AgentRound {
-                    from_agents: message(),
+                    from_agents: EdgeMessage::new(hidden, agent_edge_features, device),
                     from_lanes: message(),
                     update: NodeUpdate::new(hidden, device),
                 })
@@ -269,6 +283,31 @@ impl HeteroGnn {
                 })
                 .collect(),
         }
+    }
+
+    /// The same layers with `extra` more agent <- agent edge inputs (see
+    /// [`EdgeMessage::with_extra_pose_inputs`]).
+    pub fn with_extra_agent_edge_inputs(self, extra: usize, rng: &mut impl rand::Rng) -> Self {
+        Self {
+            agent_rounds: self
+                .agent_rounds
+                .into_iter()
+                .map(|round| AgentRound {
+                    from_agents: round.from_agents.with_extra_pose_inputs(extra, rng),
+                    ..round
+                })
+                .collect(),
+            ..self
+        }
+    }
+
+    /// The agent <- agent edge-input weights of every round (tests inspect their gradient).
+    #[cfg(test)]
+    pub fn agent_edge_weights(&self) -> Vec<&burn::module::Param<Tensor<2>>> {
+        self.agent_rounds
+            .iter()
+            .map(|round| round.from_agents.pose_weight())
+            .collect()
     }
 
     /// The first round's terms that depend on the lane features `lanes` (h_m) only; `None`

@@ -12,11 +12,12 @@
 //!
 //! [`NodeUpdate`]: LaneGCN's fusion, `h' = relu(h + LN(W_o relu(LN(W_self h + sum of messages))))`.
 
-use burn::module::Module;
+use burn::module::{Module, Param};
 use burn::nn::{LayerNorm, LayerNormConfig, Linear, LinearConfig};
 use burn::prelude::*;
 use burn::tensor::activation::relu;
-use burn::tensor::{Bool, Int};
+use burn::tensor::{Bool, Int, TensorData};
+use rand::Rng;
 
 use super::aggregate::{gather_neighbours, masked_max};
 use super::rowwise::rowwise;
@@ -35,6 +36,38 @@ impl EdgeMessage {
                 .with_bias(false)
                 .init(device),
         }
+    }
+
+    /// The same messages with `extra` more edge inputs appended after the pose. Their weights
+    /// are drawn from `rng` as a fresh layer of the widened size draws its own (burn's default
+    /// Kaiming-uniform, bound 1 / sqrt(fan-in)); the old weights are kept. Zero weights would keep
+    /// the outputs exactly, but Adam moves a weight by about the learning rate per step, so at
+    /// a fine-tune's 5e-5 they would stay near zero for the whole run and the new inputs unused.
+    pub fn with_extra_pose_inputs(self, extra: usize, rng: &mut impl Rng) -> Self {
+        let weight = self.pose.weight.val();
+        let [rows, hidden] = weight.dims();
+        let device = weight.device();
+        let bound = 1.0 / ((rows + extra) as f32).sqrt();
+        let drawn: Vec<f32> = (0..extra * hidden)
+            .map(|_| rng.random_range(-bound..bound))
+            .collect();
+        let added = Tensor::<2>::from_data(TensorData::new(drawn, [extra, hidden]), &device);
+        // Through plain data: a parameter must be a leaf of the autodiff graph, and a `cat`
+        // under autodiff is a node even of detached inputs.
+        let widened = Tensor::cat(vec![weight.detach(), added], 0).into_data();
+        Self {
+            pose: Linear {
+                weight: Param::from_tensor(Tensor::from_data(widened, &device)),
+                bias: self.pose.bias,
+            },
+            ..self
+        }
+    }
+
+    /// `W_p`, `[pose inputs, hidden]`.
+    #[cfg(test)]
+    pub fn pose_weight(&self) -> &Param<Tensor<2>> {
+        &self.pose.weight
     }
 
     /// Sparse edges: `senders` `[B, M, C]`, per receiver `index` / `mask` `[B, R, K]` and
@@ -109,5 +142,32 @@ impl NodeUpdate {
                 .forward(rowwise(&self.own, nodes.clone()) + messages),
         );
         relu(nodes + self.second_norm.forward(rowwise(&self.output, fused)))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use burn::tensor::Distribution;
+    use rand::SeedableRng;
+
+    /// The widened layer's messages on inputs whose new features are zero are the old ones.
+    #[test]
+    fn extra_inputs_at_zero_leave_the_messages_unchanged() {
+        #[allow(deprecated)]
+        let device = Device::ndarray();
+        let (hidden, pose_features, extra) = (8, 5, 3);
+        let message = EdgeMessage::new(hidden, pose_features, &device);
+        let senders = Tensor::<3>::random([2, 4, hidden], Distribution::Default, &device);
+        let pose = Tensor::<4>::random([2, 3, 4, pose_features], Distribution::Default, &device);
+        let mask = Tensor::<3>::random([2, 3, 4], Distribution::Default, &device).greater_elem(0.3);
+        let before = message.aggregate_dense(senders.clone(), pose.clone(), mask.clone());
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+        let widened = message.with_extra_pose_inputs(extra, &mut rng);
+        let padded = Tensor::cat(vec![pose, Tensor::zeros([2, 3, 4, extra], &device)], 3);
+        let after = widened.aggregate_dense(senders, padded, mask);
+        after
+            .into_data()
+            .assert_approx_eq::<f32>(&before.into_data(), burn::tensor::Tolerance::absolute(1e-6));
     }
 }

@@ -2,7 +2,8 @@
 //! Architecture"), as burn modules that never name a backend:
 //!
 //! - [`input`]: viewpoint-invariant inputs from a [`crate::scene::SceneBatch`] and the frames of
-//!   a rollout ([`relative_pose`] encodes one pose seen from another);
+//!   a rollout ([`relative_pose`] encodes one pose seen from another, [`relative_motion`] one
+//!   agent's motion relative to another's);
 //! - [`history`]: 1D residual CNN + GRU -> h_a per agent;
 //! - [`lane_encoder`]: LaneGCN over successor / predecessor / left / right -> h_m per lane node;
 //! - [`interaction`]: HeteroGNN over agents and lane nodes -> fused h_i per agent;
@@ -24,6 +25,7 @@ pub mod lane_encoder;
 pub mod message;
 pub mod network;
 pub mod network_policy;
+pub mod relative_motion;
 pub mod relative_pose;
 pub mod rowwise;
 

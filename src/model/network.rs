@@ -13,6 +13,7 @@ use super::history::HistoryEncoder;
 use super::input::{AgentInput, LaneInput, history_features};
 use super::interaction::{HeteroGnn, StaticLaneTerms};
 use super::lane_encoder::LaneGraphEncoder;
+use super::relative_motion::RELATIVE_MOTION_FEATURES;
 use super::relative_pose::relative_pose_features;
 use super::rowwise::rowwise;
 
@@ -137,7 +138,13 @@ impl SceneEncoder {
                 device,
             ),
             lanes: LaneGraphEncoder::new(config.hidden, config.lane_layers, pose, device),
-            interaction: HeteroGnn::new(config.hidden, config.interaction_rounds, pose, device),
+            interaction: HeteroGnn::new(
+                config.hidden,
+                config.interaction_rounds,
+                pose,
+                pose + agent_edge_motion_features(config),
+                device,
+            ),
             config: config.clone(),
         }
     }
@@ -172,6 +179,24 @@ impl SceneEncoder {
 
     pub fn config(&self) -> &ModelConfig {
         &self.config
+    }
+
+    /// The same encoder with `agent_edge_motion` switched on, the new inputs' weights drawn
+    /// from `rng`.
+    fn with_agent_edge_motion(self, rng: &mut impl rand::Rng) -> Self {
+        if self.config.agent_edge_motion {
+            return self;
+        }
+        Self {
+            interaction: self
+                .interaction
+                .with_extra_agent_edge_inputs(RELATIVE_MOTION_FEATURES, rng),
+            config: ModelConfig {
+                agent_edge_motion: true,
+                ..self.config
+            },
+            ..self
+        }
     }
 
     fn parameter_counts(&self, head: &Mlp) -> ParameterCounts {
@@ -256,7 +281,30 @@ macro_rules! shared_network_methods {
 shared_network_methods!(PolicyNetwork, 4);
 shared_network_methods!(ValueNetwork, 1);
 
+/// Width of the relative-motion inputs of an agent <- agent edge under `config`.
+fn agent_edge_motion_features(config: &ModelConfig) -> usize {
+    if config.agent_edge_motion {
+        RELATIVE_MOTION_FEATURES
+    } else {
+        0
+    }
+}
+
 impl PolicyNetwork {
+    /// The same policy with `agent_edge_motion` on, every trained weight kept and the new
+    /// inputs' weights drawn from `rng` as a fresh layer's: how a policy trained with the
+    /// paper's pose-only edges warm-starts a run that gives the edges relative motion
+    /// (`[init] add_agent_edge_motion`). Where no agent moves relative to another (equal
+    /// velocities) the new inputs are zero and the actions are the old policy's.
+    pub fn with_agent_edge_motion(self, rng: &mut impl rand::Rng) -> Self {
+        Self {
+            network: EncoderWithHead {
+                encoder: self.network.encoder.with_agent_edge_motion(rng),
+                head: self.network.head,
+            },
+        }
+    }
+
     /// The same policy with the state-independent sigma `std` (m/s^2, rad) for every agent:
     /// the action head's log-sigma outputs are made constant, the mean is untouched. Values
     /// outside what the head can express (`log_std_range` times `action_scale`) are clamped.
@@ -358,12 +406,8 @@ mod tests {
             .expect("floats")
     }
 
-    /// The first round's lane terms computed once per rollout give the forward (and gradient)
-    /// of computing them at every step.
-    #[test]
-    fn cached_lane_terms_change_no_output_or_gradient() {
-        #[allow(deprecated)]
-        let device = Device::ndarray().autodiff();
+    /// Three synthetic scenes of 4-6 agents on a merge.
+    fn merge_batch(device: &Device) -> SceneBatch {
         let od = ProceduralMap::preset("on_ramp_merge")
             .and_then(|p| p.build())
             .expect("map");
@@ -373,14 +417,113 @@ mod tests {
             .map(|k| synthetic_scene(&map, &graph, 4 + k, k, 4, 1))
             .collect();
         let refs: Vec<&Scene> = scenes.iter().collect();
-        let batch = SceneBatch::from_scenes(&refs, &device).expect("batch");
-        let config = ModelConfig {
+        SceneBatch::from_scenes(&refs, device).expect("batch")
+    }
+
+    fn narrow_config() -> ModelConfig {
+        ModelConfig {
             hidden: 16,
             lane_layers: 1,
             interaction_rounds: 3,
             head_hidden: vec![16],
             ..ModelConfig::default()
-        };
+        }
+    }
+
+    /// Adding relative motion to a pose-only policy keeps every trained weight, gives a network
+    /// of the widened config's shapes, changes the actions only through the new inputs, and the
+    /// new weights get a gradient.
+    #[test]
+    fn adding_edge_motion_keeps_the_weights_and_trains_the_new_inputs() {
+        use rand::SeedableRng;
+        #[allow(deprecated)]
+        let device = Device::ndarray().autodiff();
+        let batch = merge_batch(&device);
+        let pose_only = narrow_config();
+        let policy = PolicyNetwork::new(&pose_only, &device);
+        let frames = logged_frames(&batch, batch.history_steps);
+        let lanes = LaneInput::from_batch(&batch, &pose_only);
+        let before = values(
+            policy
+                .forward(
+                    &AgentInput::from_frames(&batch, &frames, &pose_only),
+                    &lanes,
+                    &policy.encode_lanes(&lanes),
+                )
+                .mean,
+        );
+        let old_rows: Vec<Vec<f32>> = policy
+            .network
+            .encoder
+            .interaction
+            .agent_edge_weights()
+            .iter()
+            .map(|w| {
+                w.val()
+                    .into_data()
+                    .convert::<f32>()
+                    .try_to_vec::<f32>()
+                    .unwrap()
+            })
+            .collect();
+
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let widened = policy.with_agent_edge_motion(&mut rng);
+        let with_motion = widened.config().clone();
+        assert!(with_motion.agent_edge_motion);
+        assert_eq!(
+            PolicyNetwork::new(&with_motion, &device).num_params(),
+            widened.num_params()
+        );
+        let weights = widened.network.encoder.interaction.agent_edge_weights();
+        for (w, old) in weights.iter().zip(&old_rows) {
+            let new: Vec<f32> = w
+                .val()
+                .into_data()
+                .convert::<f32>()
+                .try_to_vec::<f32>()
+                .unwrap();
+            assert_eq!(&new[..old.len()], &old[..], "trained weights changed");
+            let bound = 1.0 / (w.dims()[0] as f32).sqrt();
+            let added = &new[old.len()..];
+            assert!(added.iter().all(|x| x.abs() <= bound) && added.iter().any(|x| *x != 0.0));
+        }
+
+        let agents = AgentInput::from_frames(&batch, &frames, &with_motion);
+        let after = widened.forward(&agents, &lanes, &widened.encode_lanes(&lanes));
+        assert_ne!(
+            before,
+            values(after.mean.clone()),
+            "the motion inputs are not used"
+        );
+        let grads = GradientsParams::from_grads(after.mean.sum().backward(), &widened);
+        let motion_gradient: f64 = weights
+            .iter()
+            .map(|w| {
+                let rows = w.dims()[0];
+                let g = grads
+                    .get::<2>(w.id)
+                    .expect("a gradient for the edge weights");
+                g.narrow(0, rows - RELATIVE_MOTION_FEATURES, RELATIVE_MOTION_FEATURES)
+                    .abs()
+                    .sum()
+                    .into_scalar::<f64>()
+            })
+            .sum();
+        assert!(
+            motion_gradient > 0.0,
+            "no gradient reaches the motion inputs"
+        );
+    }
+
+    /// The first round's lane terms computed once per rollout give the forward (and gradient)
+    /// of computing them at every step.
+    #[test]
+    fn cached_lane_terms_change_no_output_or_gradient() {
+        #[allow(deprecated)]
+        let device = Device::ndarray().autodiff();
+        let batch = merge_batch(&device);
+        let config = narrow_config();
         let policy = PolicyNetwork::new(&config, &device);
         let lanes = LaneInput::from_batch(&batch, &config);
         let agents =

@@ -306,6 +306,11 @@ pub struct InitConfig {
     /// against its own noise instead of the infractions of the scenarios.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub std_from_logs: bool,
+    /// The warm start was trained with the paper's pose-only agent <- agent edges and this run
+    /// gives them relative motion (`[model] agent_edge_motion = true`): load it without, then
+    /// add the motion inputs with zero weights, so the run starts from the same actions.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub add_agent_edge_motion: bool,
 }
 
 impl InitConfig {
@@ -649,6 +654,17 @@ impl TrainConfig {
             }
             _ => {}
         }
+        if self
+            .init
+            .as_ref()
+            .is_some_and(|i| i.add_agent_edge_motion && !self.model.agent_edge_motion)
+        {
+            return fail(
+                "init.add_agent_edge_motion",
+                "adds relative motion to a pose-only warm start: it needs [model] \
+                 agent_edge_motion = true",
+            );
+        }
         if !self.method.uses_ppo() && self.alpha > 0.0 {
             return fail(
                 "alpha",
@@ -785,5 +801,16 @@ mod tests {
         let err =
             TrainConfig::from_toml_str("method = \"PPO\"", "run.toml").expect_err("unknown method");
         assert!(err.to_string().contains("RTR"), "{err}");
+        let widen = "method = \"IL\"\n[init]\npolicy = \"il\"\nadd_agent_edge_motion = true\n";
+        let err = TrainConfig::from_toml_str(widen, "run.toml").expect_err("pose-only model");
+        assert!(
+            err.to_string().contains("init.add_agent_edge_motion")
+                && err.to_string().contains("agent_edge_motion = true"),
+            "{err}"
+        );
+        let config =
+            TrainConfig::from_toml_str(&format!("{widen}[model]\nagent_edge_motion = true\n"), "r")
+                .expect("widening a pose-only warm start");
+        assert!(config.model.agent_edge_motion);
     }
 }

@@ -41,7 +41,7 @@ use super::ppo::{AdvantageScale, ppo_terms};
 use super::shards::{BUCKET_SCENES, per_device, plan};
 use super::sources::{InitialState, Part, TrainingData};
 use crate::error::{Error, Result};
-use crate::model::{PolicyNetwork, ValueNetwork};
+use crate::model::{ModelConfig, PolicyNetwork, ValueNetwork};
 use crate::scene::{Scene, SceneBatch};
 use crate::sim::{Dynamics, MapCaches};
 
@@ -276,7 +276,22 @@ impl<'d> Trainer<'d> {
                     });
                 let policy = match &config.init {
                     Some(init) => {
-                        let policy = checkpoint::load_module(policy, &init.policy_file())?;
+                        let policy = if init.add_agent_edge_motion {
+                            let pose_only = ModelConfig {
+                                agent_edge_motion: false,
+                                ..config.model.clone()
+                            };
+                            // Its own stream: the seeded initialisation above is unchanged.
+                            let mut rng = ChaCha8Rng::seed_from_u64(stream_seed(
+                                config.seed,
+                                0,
+                                u64::MAX - 1,
+                            ));
+                            checkpoint::load_policy(&init.policy_file(), &pose_only, &main)?
+                                .with_agent_edge_motion(&mut rng)
+                        } else {
+                            checkpoint::load_module(policy, &init.policy_file())?
+                        };
                         if init.std_from_logs {
                             std_from_logs("init", policy, data, &config, &main)?
                         } else {
