@@ -24,8 +24,8 @@ use rtr::eval::evaluate::simulate_set;
 use rtr::eval::{EvalConfig, EvalPolicy, EvalScenes, EvalSet, IdmBaseline, TrainedPolicy};
 use rtr::geometry::OrientedBox;
 use rtr::map::{LaneGraph, Map};
-use rtr::scene::{AgentRole, Scene, SceneAgent};
-use rtr::sim::Dynamics;
+use rtr::scene::{AgentRole, Scene, SceneAgent, SceneBatch};
+use rtr::sim::{Controls, Dynamics, Observation, Policy};
 
 const DT: f64 = 0.5;
 const HISTORY_STEPS: usize = 4;
@@ -43,6 +43,10 @@ const LEADER_BRAKED_SPEED: f64 = 16.0;
 const FOLLOWER_START_M: f64 = 100.0;
 /// Steps over which the early acceleration is measured (2 s).
 const EARLY_STEPS: usize = 4;
+/// `--kicks`: one exploration sigma per control, (m/s^2, rad): the recipe's sigma from the
+/// logs (`init: sigma from the logs` of the RTR recipe run), and PPO's discount.
+const KICK_SIGMA: [f64; 2] = [0.88, 0.0038];
+const KICK_GAMMA: f64 = 0.99;
 
 /// One probe case.
 #[derive(Debug, Clone, Copy)]
@@ -55,14 +59,23 @@ struct Case {
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     rtr::allocator::tune_for_tensors();
     let args: Vec<String> = std::env::args().skip(1).collect();
-    if let Some(flag) = args.iter().find(|a| a.starts_with("--") && *a != "--idm") {
-        return Err(format!("unknown option {flag}: the only option is --idm").into());
+    let options = ["--idm", "--kicks"];
+    if let Some(flag) = args
+        .iter()
+        .find(|a| a.starts_with("--") && !options.contains(&a.as_str()))
+    {
+        return Err(format!("unknown option {flag}: the options are --idm and --kicks").into());
     }
     let with_idm = args.iter().any(|a| a == "--idm");
-    let checkpoints: Vec<&String> = args.iter().filter(|a| *a != "--idm").collect();
+    let with_kicks = args.iter().any(|a| a == "--kicks");
+    let checkpoints: Vec<&String> = args
+        .iter()
+        .filter(|a| !options.contains(&a.as_str()))
+        .collect();
     if checkpoints.is_empty() && !with_idm {
         return Err(
-            "usage: cargo run --release --example car_following -- [--idm] CHECKPOINT...".into(),
+            "usage: cargo run --release --example car_following -- [--idm] [--kicks] CHECKPOINT..."
+                .into(),
         );
     }
     let device = rtr::backend::Backend::Flex.device(false)?;
@@ -153,7 +166,149 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             cases.len()
         );
     }
+    if with_kicks {
+        println!();
+        print_kicks(&drivers, &set, &cases, lane_y, &device, &config)?;
+    }
     Ok(())
+}
+
+/// One step of exploration noise: what PPO's per-step credit assignment can see.
+///
+/// PPO learns from the return that follows each sampled action. Here the follower's first
+/// simulated action gets one exploration sigma added (the recipe's sigma from the logs) in
+/// one control, and the policy's mean drives every later step. The change of the follower's
+/// training return (-gamma^t at its first collision or off-road step, as the sparse reward
+/// with early termination) against the unkicked rollout is the finite difference PPO's
+/// gradient estimates for that control in that state.
+fn print_kicks(
+    drivers: &[(String, Box<dyn EvalPolicy>, Dynamics)],
+    set: &EvalScenes,
+    cases: &[Case],
+    lane_y: f64,
+    device: &burn::prelude::Device,
+    config: &EvalConfig,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let kicks = [
+        ("none", 0.0, 0.0),
+        ("brake 1 sigma", -KICK_SIGMA[0], 0.0),
+        ("accelerate 1 sigma", KICK_SIGMA[0], 0.0),
+        ("steer left 1 sigma", 0.0, KICK_SIGMA[1]),
+        ("steer right 1 sigma", 0.0, -KICK_SIGMA[1]),
+    ];
+    println!(
+        "| policy | first action kicked | contacts | off-road | lateral offset at 6 s (m) | return change vs none, mean over cases (x 1000) | cases whose outcome changed |"
+    );
+    println!("|---|---|---|---|---|---|---|");
+    for (name, policy, dynamics) in drivers {
+        let mut baseline: Option<Vec<Outcome>> = None;
+        for (label, accel, steer) in kicks {
+            let kicked = Kicked {
+                inner: policy.as_ref(),
+                accel,
+                steer,
+            };
+            let simulated = simulate_set(&kicked, dynamics, set, device, config, None)?;
+            let outcomes: Vec<Outcome> = simulated.iter().map(|s| outcome(s, lane_y)).collect();
+            let base = baseline.get_or_insert_with(|| outcomes.clone());
+            let change = outcomes
+                .iter()
+                .zip(base.iter())
+                .map(|(o, b)| o.training_return() - b.training_return())
+                .sum::<f64>()
+                / cases.len() as f64;
+            let changed = outcomes
+                .iter()
+                .zip(base.iter())
+                .filter(|(o, b)| o.first_infraction_step != b.first_infraction_step)
+                .count();
+            let offset =
+                outcomes.iter().map(|o| o.lateral_offset).sum::<f64>() / cases.len() as f64;
+            println!(
+                "| {name} | {label} | {} | {} | {offset:+.2} | {:+.1} | {changed} of {} |",
+                outcomes.iter().filter(|o| o.contact).count(),
+                outcomes.iter().filter(|o| o.offroad).count(),
+                1000.0 * change,
+                cases.len()
+            );
+        }
+    }
+    Ok(())
+}
+
+/// A policy whose actions at the first simulated step are offset by (`accel`, `steer`).
+struct Kicked<'p> {
+    inner: &'p dyn EvalPolicy,
+    accel: f64,
+    steer: f64,
+}
+
+impl EvalPolicy for Kicked<'_> {
+    fn policy<'a>(
+        &'a self,
+        scenes: &[&Scene],
+        batch: &SceneBatch,
+        noise: Option<u64>,
+    ) -> Box<dyn Policy + 'a> {
+        let mut inner = self.inner.policy(scenes, batch, noise);
+        let (accel, steer) = (self.accel, self.steer);
+        Box::new(move |obs: &Observation| {
+            let controls = inner.act(obs);
+            if obs.step == 0 {
+                Controls {
+                    accel: controls.accel.add_scalar(accel),
+                    steer: controls.steer.add_scalar(steer),
+                }
+            } else {
+                controls
+            }
+        })
+    }
+}
+
+/// The follower's first infraction under the training reward.
+#[derive(Debug, Clone)]
+struct Outcome {
+    contact: bool,
+    offroad: bool,
+    /// Simulated step (1 = after the first action) of the first contact or off-road step.
+    first_infraction_step: Option<usize>,
+    lateral_offset: f64,
+}
+
+impl Outcome {
+    /// The follower's discounted return: -1 at its first infraction, nothing after (it is
+    /// terminated), discounted as the recipe's PPO (gamma 0.99).
+    fn training_return(&self) -> f64 {
+        self.first_infraction_step
+            .map_or(0.0, |t| -KICK_GAMMA.powi(t as i32 - 1))
+    }
+}
+
+fn outcome(scene: &Scene, lane_y: f64) -> Outcome {
+    let (follower, leader) = (&scene.agents[0].states, &scene.agents[1].states);
+    let now = HISTORY_STEPS;
+    let footprint = |a: &AgentState| OrientedBox::new([a.x, a.y], a.heading, LENGTH_M, WIDTH_M);
+    // On the straight road along +x, a box is off the road when its lateral extent passes the
+    // outer lane edges (1.5 lanes either side of the middle lane's centre).
+    let off_road = |a: &AgentState| {
+        let half_extent =
+            0.5 * (WIDTH_M * a.heading.cos().abs() + LENGTH_M * a.heading.sin().abs());
+        (a.y - lane_y).abs() + half_extent > 1.5 * LANE_WIDTH_M
+    };
+    let contact_at = (now + 1..follower.len())
+        .find(|&t| footprint(&follower[t]).overlaps(&footprint(&leader[t])));
+    let offroad_at = (now + 1..follower.len()).find(|&t| off_road(&follower[t]));
+    let first = match (contact_at, offroad_at) {
+        (Some(c), Some(o)) => Some(c.min(o)),
+        (c, o) => c.or(o),
+    };
+    Outcome {
+        contact: contact_at.is_some(),
+        offroad: offroad_at.is_some(),
+        first_infraction_step: first.map(|t| t - now),
+        lateral_offset: follower[follower.len() - 1].y - lane_y,
+    }
 }
 
 /// Per policy: the early acceleration per closing speed (mean over the gaps), for each leader,
