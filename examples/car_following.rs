@@ -430,13 +430,11 @@ fn measure(scene: &Scene, lane_y: f64) -> Following {
     let smallest_gap = (now..follower.len())
         .map(|t| leader[t].x - follower[t].x - LENGTH_M)
         .fold(f64::INFINITY, f64::min);
-    let footprint = |a: &AgentState| OrientedBox::new([a.x, a.y], a.heading, LENGTH_M, WIDTH_M);
-    let contact =
-        (now..follower.len()).any(|t| footprint(&follower[t]).overlaps(&footprint(&leader[t])));
+    let outcome = outcome(scene, lane_y);
     Following {
         early_accel: early,
         smallest_gap,
-        contact,
-        lateral_offset: follower[follower.len() - 1].y - lane_y,
+        contact: outcome.contact,
+        lateral_offset: outcome.lateral_offset,
     }
 }
