@@ -284,6 +284,7 @@ fn a_reference_with_sigma_from_the_logs_starts_at_zero_kl() {
         config.init = Some(rtr::train::InitConfig {
             policy: reference.clone().into(),
             std_from_logs: true,
+            std_scale: [1.0, 1.0],
             add_agent_edge_motion: false,
         });
         config.ppo.value_warmup_iterations = 0;
@@ -471,6 +472,7 @@ fn a_warm_started_run_begins_from_its_initial_policy_and_warms_up_the_value() {
         config.init = Some(rtr::train::InitConfig {
             policy: init.clone().into(),
             std_from_logs: false,
+            std_scale: [1.0, 1.0],
             add_agent_edge_motion: false,
         });
         config.ppo.value_warmup_iterations = warmup;
@@ -501,12 +503,13 @@ fn a_warm_started_run_begins_from_its_initial_policy_and_warms_up_the_value() {
     assert!(rows.last().is_some_and(|r| r.il_loss > 0.0), "{rows:?}");
 
     // With std_from_logs the warm start keeps its mean, and its sigma becomes the RMS error of
-    // that mean against the nominal training logs, the same for every agent.
+    // that mean against the nominal training logs times std_scale, the same for every agent.
     let calibrated = dir.path().join("calibrated");
     let mut config = tiny("RTR", "alpha = 0.5", "");
     config.init = Some(rtr::train::InitConfig {
         policy: init.clone().into(),
         std_from_logs: true,
+        std_scale: [1.0, 0.5],
         add_agent_edge_motion: false,
     });
     config.ppo.value_warmup_iterations = 2;
@@ -540,7 +543,11 @@ fn a_warm_started_run_begins_from_its_initial_policy_and_warms_up_the_value() {
     for (slot, _) in mask.iter().enumerate().filter(|(_, m)| **m) {
         for k in 0..2 {
             let sigma = (log_std[slot * 2 + k] as f64).exp();
-            assert!((sigma / rms[k] - 1.0).abs() < 1e-3, "{sigma} vs {}", rms[k]);
+            let expected = rms[k] * [1.0, 0.5][k];
+            assert!(
+                (sigma / expected - 1.0).abs() < 1e-3,
+                "{sigma} vs {expected}"
+            );
         }
     }
 
@@ -548,6 +555,7 @@ fn a_warm_started_run_begins_from_its_initial_policy_and_warms_up_the_value() {
     missing.init = Some(rtr::train::InitConfig {
         policy: dir.path().join("no-such-policy.bpk"),
         std_from_logs: false,
+        std_scale: [1.0, 1.0],
         add_agent_edge_motion: false,
     });
     let workers = devices(&missing).expect("devices");
@@ -568,6 +576,7 @@ fn rtr_at_lambda_zero_waits_out_the_warm_up_then_imitates() {
     config.init = Some(rtr::train::InitConfig {
         policy: init.clone().into(),
         std_from_logs: false,
+        std_scale: [1.0, 1.0],
         add_agent_edge_motion: false,
     });
     config.ppo.value_warmup_iterations = 1;

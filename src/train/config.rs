@@ -306,11 +306,26 @@ pub struct InitConfig {
     /// against its own noise instead of the infractions of the scenarios.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub std_from_logs: bool,
+    /// Not in the paper: multiply the sigma from the logs per control (acceleration, steering),
+    /// e.g. `[1.0, 0.25]` to explore with a quarter of the steering noise. One step of a
+    /// log-sized steering sigma moves a car a lane within 6 s and decides most outcomes of the
+    /// car-following probe (`experiments/recipe/car_following`), which buries PPO's credit for
+    /// braking under steering noise. Needs `std_from_logs = true`.
+    #[serde(default = "unit_std_scale", skip_serializing_if = "is_unit_std_scale")]
+    pub std_scale: [f64; 2],
     /// The warm start was trained with the paper's pose-only agent <- agent edges and this run
     /// gives them relative motion (`[model] agent_edge_motion = true`): load it without, then
     /// add the motion inputs with zero weights, so the run starts from the same actions.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub add_agent_edge_motion: bool,
+}
+
+fn unit_std_scale() -> [f64; 2] {
+    [1.0, 1.0]
+}
+
+fn is_unit_std_scale(scale: &[f64; 2]) -> bool {
+    *scale == unit_std_scale()
 }
 
 impl InitConfig {
@@ -665,6 +680,17 @@ impl TrainConfig {
                  agent_edge_motion = true",
             );
         }
+        if let Some(init) = &self.init {
+            if !init.std_scale.iter().all(|s| s.is_finite() && *s > 0.0) {
+                return fail("init.std_scale", "expected two finite factors > 0");
+            }
+            if !init.std_from_logs && !is_unit_std_scale(&init.std_scale) {
+                return fail(
+                    "init.std_scale",
+                    "scales the sigma from the logs: it needs std_from_logs = true",
+                );
+            }
+        }
         if !self.method.uses_ppo() && self.alpha > 0.0 {
             return fail(
                 "alpha",
@@ -812,5 +838,21 @@ mod tests {
             TrainConfig::from_toml_str(&format!("{widen}[model]\nagent_edge_motion = true\n"), "r")
                 .expect("widening a pose-only warm start");
         assert!(config.model.agent_edge_motion);
+        let scaled = "method = \"RTR\"\n[init]\npolicy = \"il\"\nstd_scale = [1.0, 0.25]\n";
+        let err = TrainConfig::from_toml_str(scaled, "run.toml").expect_err("no sigma to scale");
+        assert!(
+            err.to_string().contains("init.std_scale")
+                && err.to_string().contains("std_from_logs = true"),
+            "{err}"
+        );
+        let scaled = scaled.replace("std_scale", "std_from_logs = true\nstd_scale");
+        let config = TrainConfig::from_toml_str(&scaled, "run.toml").expect("scaled sigma");
+        assert_eq!(config.init.map(|i| i.std_scale), Some([1.0, 0.25]));
+        let err = TrainConfig::from_toml_str(&scaled.replace("0.25", "0.0"), "run.toml")
+            .expect_err("zero sigma");
+        assert!(err.to_string().contains("init.std_scale"), "{err}");
+        let err = TrainConfig::from_toml_str(&scaled.replace(", 0.25", ""), "run.toml")
+            .expect_err("one factor");
+        assert!(err.to_string().contains("line 5"), "{err}");
     }
 }

@@ -186,10 +186,11 @@ pub struct IterationTiming {
 /// Nominal training scenes the warm start's sigma is measured on (every k-th, for a spread).
 const STD_SCENES: usize = 128;
 
-/// `policy` with the sigma of [`crate::train::config::InitConfig::std_from_logs`], said on
-/// stderr after `what` (the warm start or the KL reference).
+/// `policy` with the sigma of [`crate::train::config::InitConfig::std_from_logs`] times
+/// `scale` per control, said on stderr after `what` (the warm start or the KL reference).
 fn std_from_logs(
     what: &str,
+    scale: [f64; 2],
     policy: PolicyNetwork,
     data: &TrainingData,
     config: &TrainConfig,
@@ -206,7 +207,13 @@ fn std_from_logs(
         std[1],
         scenes.len()
     );
-    Ok(policy.with_constant_std(std))
+    if scale != [1.0, 1.0] {
+        eprintln!(
+            "{what}: sigma scaled by [{}, {}] (init.std_scale)",
+            scale[0], scale[1]
+        );
+    }
+    Ok(policy.with_constant_std([std[0] * scale[0], std[1] * scale[1]]))
 }
 
 fn optimizer(config: &TrainConfig) -> ModuleOptimizer {
@@ -293,7 +300,7 @@ impl<'d> Trainer<'d> {
                             checkpoint::load_module(policy, &init.policy_file())?
                         };
                         if init.std_from_logs {
-                            std_from_logs("init", policy, data, &config, &main)?
+                            std_from_logs("init", init.std_scale, policy, data, &config, &main)?
                         } else {
                             policy
                         }
@@ -319,7 +326,7 @@ impl<'d> Trainer<'d> {
                 let device = main.clone().inner();
                 let policy = checkpoint::load_policy(&r.checkpoint, &config.model, &device)?;
                 Some(if r.std_from_logs {
-                    std_from_logs("reference", policy, data, &config, &device)?
+                    std_from_logs("reference", [1.0, 1.0], policy, data, &config, &device)?
                 } else {
                     policy
                 })
