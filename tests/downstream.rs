@@ -150,19 +150,19 @@ fn a_study_repeats_with_its_seeds() {
         batch: 4,
         ..EvalConfig::default()
     };
-    let run = || {
+    let run = |config: &DownstreamConfig| {
         downstream(
             &entries,
             &train,
             &test,
             &device,
-            &config,
+            config,
             &eval,
             &indicatif::ProgressBar::hidden(),
         )
         .expect("downstream")
     };
-    let rows = run();
+    let rows = run(&config);
     let names: Vec<&str> = rows.iter().map(|r| r.data.as_str()).collect();
     assert_eq!(names, ["Real logs", "IL", "IDM"]);
     for r in &rows {
@@ -178,5 +178,15 @@ fn a_study_repeats_with_its_seeds() {
     }
     // Seeds differ (new data, new initialisation); the whole study repeats exactly.
     assert_ne!(rows[1].scores[0], rows[1].scores[1]);
-    assert_eq!(rows, run());
+    assert_eq!(rows, run(&config));
+
+    // With mean actions IL's data is one dataset for every seed and differs from its sampled
+    // data; IDM, deterministic either way, gives the same row.
+    let mean = run(&DownstreamConfig {
+        mean_actions: true,
+        ..config.clone()
+    });
+    assert_eq!(mean[1].train_examples[0], mean[1].train_examples[1]);
+    assert_ne!(mean[1].scores, rows[1].scores);
+    assert_eq!((&mean[0], &mean[2]), (&rows[0], &rows[2]));
 }

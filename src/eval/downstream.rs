@@ -6,7 +6,10 @@
 //!
 //! Every seed draws a new synthetic dataset (sampled actions, as a simulator generating data
 //! runs) and a new predictor initialisation, so the spread over seeds covers both. A
-//! predictor trained on the real training logs is the reference row.
+//! predictor trained on the real training logs is the reference row. With
+//! [`DownstreamConfig::mean_actions`] the policies drive with their mean action instead: the
+//! data no longer depends on each policy's sigma (which closed-loop IL never trains), only on
+//! its behaviour, and every seed redraws only the predictor's initialisation.
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -25,6 +28,9 @@ pub struct DownstreamConfig {
     pub seeds: usize,
     pub seed: u64,
     pub fit: FitConfig,
+    /// Drive with each policy's mean action instead of sampling (not in the paper).
+    #[serde(default)]
+    pub mean_actions: bool,
 }
 
 impl Default for DownstreamConfig {
@@ -33,6 +39,7 @@ impl Default for DownstreamConfig {
             seeds: 4,
             seed: 2023,
             fit: FitConfig::default(),
+            mean_actions: false,
         }
     }
 }
@@ -124,8 +131,8 @@ pub fn downstream(
             &test_samples,
             device,
             |k| {
-                let noise = stream_seed(config.seed, k, 2);
-                let scenes = simulate_set(policy, dynamics, train, &plain, eval, Some(noise))?;
+                let noise = (!config.mean_actions).then(|| stream_seed(config.seed, k, 2));
+                let scenes = simulate_set(policy, dynamics, train, &plain, eval, noise)?;
                 Ok(samples_of(&scenes))
             },
             progress,

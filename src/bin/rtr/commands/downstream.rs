@@ -29,6 +29,10 @@ pub struct DownstreamArgs {
     /// Predictor training epochs.
     #[arg(long, default_value_t = rtr::predict::FitConfig::default().epochs, value_parser = count(1, 100_000))]
     epochs: usize,
+    /// Drive with each policy's mean action instead of sampling it (not in the paper): the
+    /// synthetic data then no longer depends on the policies' sigmas.
+    #[arg(long)]
+    mean_actions: bool,
     /// Write results.json and table.md here.
     #[arg(long)]
     out: Option<PathBuf>,
@@ -55,6 +59,7 @@ pub fn run(args: DownstreamArgs) -> Result<()> {
     let (train, test) = (EvalScenes::real(split.train), EvalScenes::real(split.test));
     let mut config = DownstreamConfig {
         seeds: args.seeds,
+        mean_actions: args.mean_actions,
         ..DownstreamConfig::default()
     };
     config.fit.epochs = args.epochs;
