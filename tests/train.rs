@@ -563,6 +563,27 @@ fn a_warm_started_run_begins_from_its_initial_policy_and_warms_up_the_value() {
         .err()
         .expect("a missing initial policy is refused");
     assert!(err.to_string().contains("no-such-policy.bpk"), "{err}");
+
+    // A scaled sigma the head cannot express is refused, not clamped.
+    let mut tiny_sigma = tiny("RTR", "alpha = 0.5", "");
+    tiny_sigma.init = Some(rtr::train::InitConfig {
+        policy: init.clone().into(),
+        std_from_logs: true,
+        std_scale: [1.0, 1e-6],
+        add_agent_edge_motion: false,
+    });
+    let workers = devices(&tiny_sigma).expect("devices");
+    let err = Trainer::new(tiny_sigma, data(), workers, &dir.path().join("y"), false)
+        .err()
+        .expect("an inexpressible sigma is refused");
+    assert!(
+        err.to_string().contains("steering sigma") && err.to_string().contains("init.std_scale"),
+        "{err}"
+    );
+    assert!(
+        !dir.path().join("y").exists(),
+        "a refused run wrote its folder"
+    );
 }
 
 /// The sweep's first point, lambda = alpha = 0, is IL inside the RTR loop: the value loss is

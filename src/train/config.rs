@@ -315,7 +315,8 @@ pub struct InitConfig {
     pub std_scale: [f64; 2],
     /// The warm start was trained with the paper's pose-only agent <- agent edges and this run
     /// gives them relative motion (`[model] agent_edge_motion = true`): load it without, then
-    /// add the motion inputs with zero weights, so the run starts from the same actions.
+    /// add the motion inputs, their weights drawn as a fresh layer's (every trained weight kept;
+    /// where no agent moves relative to another the actions are the warm start's).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub add_agent_edge_motion: bool,
 }

@@ -213,7 +213,20 @@ fn std_from_logs(
             scale[0], scale[1]
         );
     }
-    Ok(policy.with_constant_std([std[0] * scale[0], std[1] * scale[1]]))
+    let scaled = [std[0] * scale[0], std[1] * scale[1]];
+    // The head would clamp a sigma it cannot express, and the run would explore with another
+    // sigma than the one asked for.
+    let [lo, hi] = config.model.log_std_range;
+    for (k, (sigma, control)) in scaled.iter().zip(["acceleration", "steering"]).enumerate() {
+        let range = [lo.exp(), hi.exp()].map(|f| f * config.model.action_scale[k]);
+        if !(range[0]..=range[1]).contains(sigma) {
+            return Err(Error::InvalidArgument(format!(
+                "{what}: the {control} sigma {sigma:.3e} (from the logs x init.std_scale) is                  outside what the policy head can express, {:.3e} to {:.3e} (model.action_scale x                  exp(model.log_std_range)): change init.std_scale or model.log_std_range",
+                range[0], range[1]
+            )));
+        }
+    }
+    Ok(policy.with_constant_std(scaled))
 }
 
 fn optimizer(config: &TrainConfig) -> ModuleOptimizer {
