@@ -220,6 +220,91 @@ fn imitation_rollouts_start_from_the_perturbed_states() {
     }
 }
 
+/// Agent dropout removes agents at its rate, keeps the rest as recorded and in order, always
+/// leaves a controlled agent, and draws the same agents for the same slot and iteration.
+#[test]
+fn agent_dropout_removes_agents_at_its_rate_and_keeps_a_controlled_one() {
+    use rtr::scene::{AgentRole, Scene};
+    use rtr::train::agent_dropout::drop_agents;
+    let scene = &data().nominal[0];
+    let n = scene.agents.len();
+    assert!(n >= 3, "the test scene has {n} agents");
+    let controlled = |s: &Scene| {
+        s.agents
+            .iter()
+            .filter(|a| a.role == AgentRole::Controlled)
+            .count()
+    };
+    assert!(
+        controlled(scene) >= 2,
+        "the test scene needs two controlled agents"
+    );
+    let kept_all = drop_agents(&[scene], &[0], 0.0, 11, 0).remove(0);
+    assert_eq!(kept_all.agents, scene.agents, "rate 0 keeps every agent");
+    let draws = 400;
+    let (mut removed, mut lone) = (0, 0);
+    for iteration in 0..draws {
+        for rate in [0.5, 0.95] {
+            let out = drop_agents(&[scene], &[3], rate, 11, iteration).remove(0);
+            let again = drop_agents(&[scene], &[3], rate, 11, iteration).remove(0);
+            assert_eq!(out.agents, again.agents, "same draw");
+            let mut recorded = scene.agents.iter();
+            for agent in &out.agents {
+                assert!(
+                    recorded.any(|a| a == agent),
+                    "kept as recorded and in order"
+                );
+            }
+            assert!(controlled(&out) >= 1, "a controlled agent stays");
+            if rate == 0.5 {
+                removed += n - out.agents.len();
+            } else {
+                lone += usize::from(out.agents.len() == 1);
+            }
+        }
+    }
+    // Binomial: the removed share's standard deviation is at most 0.5 / sqrt(n draws) = 0.0125
+    // here; the kept controlled agent lowers the mean by at most 0.5^2 / n.
+    let share = removed as f64 / (n * draws) as f64;
+    assert!(
+        (share - 0.5).abs() < 0.07,
+        "removed share {share} at rate 0.5"
+    );
+    assert!(
+        lone > draws / 2,
+        "at rate 0.95 most draws leave one agent: {lone} of {draws}"
+    );
+    let other_slot = (0..draws)
+        .filter(|&i| {
+            drop_agents(&[scene], &[3], 0.5, 11, i)[0].agents
+                != drop_agents(&[scene], &[4], 0.5, 11, i)[0].agents
+        })
+        .count();
+    assert!(other_slot > 0, "another slot draws other agents");
+}
+
+/// The imitation rollout starts from the scenes with agents dropped (IL and RTR): the first
+/// imitation loss of the same initial state changes.
+#[test]
+fn imitation_rollouts_run_on_the_scenes_with_agents_dropped() {
+    for method in ["IL", "RTR"] {
+        let first_il = |dropout: f64| {
+            let dir = tempfile::tempdir().expect("temp dir");
+            let mut config = tiny(method, "", "");
+            config.alpha = 0.0;
+            config.run.max_iterations = Some(1);
+            config.ppo.value_warmup_iterations = 0;
+            config.imitation.agent_dropout = dropout;
+            train(config, dir.path(), false, None)[0].il_loss
+        };
+        let (all, dropped) = (first_il(0.0), first_il(0.9));
+        assert!(
+            all > 0.0 && dropped > 0.0 && (all - dropped).abs() > 1e-6 * all,
+            "{method}: IL loss {all} with every agent, {dropped} with agents dropped"
+        );
+    }
+}
+
 #[test]
 fn rl_lowers_its_loss() {
     loss_falls("RL", "alpha = 0.5", "");
@@ -718,6 +803,15 @@ fn run_files_with_mistakes_are_named() {
     .expect_err("a perturbation wider than a lane");
     assert!(
         err.to_string().contains("imitation.perturbation") && err.to_string().contains("lateral_m"),
+        "{err}"
+    );
+    let err = TrainConfig::from_toml_str(
+        "method = \"IL\"\n[imitation]\nagent_dropout = 1.0\n",
+        "il.toml",
+    )
+    .expect_err("every agent dropped");
+    assert!(
+        err.to_string().contains("imitation.agent_dropout") && err.to_string().contains("[0, 1)"),
         "{err}"
     );
 }

@@ -240,6 +240,14 @@ pub struct ImitationConfig {
     /// RTR; the logged future stays the target); `None`: start from the logs as recorded.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub perturbation: Option<StartPerturbation>,
+    /// Remove each agent of an imitation scene with this probability before the rollout (IL
+    /// and RTR; [`super::agent_dropout`], not in the paper); 0: every agent as recorded.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub agent_dropout: f64,
+}
+
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
 }
 
 impl Default for ImitationConfig {
@@ -249,6 +257,7 @@ impl Default for ImitationConfig {
             huber_delta: 1.0,
             action: ActionMode::Mean,
             perturbation: None,
+            agent_dropout: 0.0,
         }
     }
 }
@@ -642,6 +651,9 @@ impl TrainConfig {
         }
         if let Some(why) = self.imitation.perturbation.as_ref().and_then(|p| p.check()) {
             return fail("imitation.perturbation", &why);
+        }
+        if let Some(why) = super::agent_dropout::check(self.imitation.agent_dropout) {
+            return fail("imitation.agent_dropout", &why);
         }
         if self.imitation.minibatch == 0 {
             return fail("imitation.minibatch", "expected at least 1");

@@ -8,11 +8,13 @@
 //! - [`experience`]: closed-loop rollouts with sampled actions, rewards, early termination;
 //! - [`gae`], [`ppo`]: advantages and the PPO losses; [`shaping`]: RL-Shaped's reward;
 //! - [`imitation`]: closed-loop IL (BPTT) and BC; [`perturbation`]: its perturbed start states;
+//!   [`agent_dropout`]: its scenes with agents removed;
 //! - [`gradients`]: global-norm clipping and multi-device sums; [`shards`]: scenes bucketed by
 //!   size and spread over worker devices;
 //! - [`checkpoint`], [`curves`]: atomic checkpoints and CSV curves;
 //! - [`trainer`]: the loop; [`bench`]: throughput.
 
+pub mod agent_dropout;
 pub mod bench;
 pub mod checkpoint;
 pub mod config;

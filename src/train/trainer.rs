@@ -31,6 +31,7 @@ use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
 
+use super::agent_dropout::drop_agents;
 use super::checkpoint::{self, LoopState};
 use super::config::{Method, PpoVariant, TrainConfig};
 use super::curves::{CurveRow, Curves};
@@ -62,6 +63,30 @@ pub fn stream_seed(seed: u64, iteration: usize, stream: u64) -> u64 {
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
     z ^ (z >> 31)
+}
+
+/// The scenes an imitation rollout of `part` starts from in `iteration`: agents dropped and
+/// histories perturbed as `config.imitation` asks; `None`: the part's scenes as recorded. The
+/// draws are seeded, so every call for the same part and iteration gives the same scenes.
+fn imitation_scenes(config: &TrainConfig, part: &Part, iteration: usize) -> Option<Vec<Scene>> {
+    let imitation = &config.imitation;
+    let mut scenes = (imitation.agent_dropout > 0.0).then(|| {
+        drop_agents(
+            &part.scenes,
+            &part.slots,
+            imitation.agent_dropout,
+            config.seed,
+            iteration,
+        )
+    });
+    if let Some(perturbation) = imitation.perturbation {
+        let starts: Vec<&Scene> = match &scenes {
+            Some(scenes) => scenes.iter().collect(),
+            None => part.scenes.clone(),
+        };
+        scenes = Some(perturbation.apply(&starts, &part.slots, config.seed, iteration));
+    }
+    scenes
 }
 
 /// Serialises seeding and initialisation through the devices' global RNG within a process.
@@ -617,7 +642,11 @@ impl<'d> Trainer<'d> {
         for w in work.iter().flatten() {
             scenes += w.part.scenes.len();
             if method.uses_closed_loop_il() && w.part.is_nominal() {
-                norm.il += imitation_count(&w.part.scenes, rollout_steps(&w.part, cap));
+                let steps = rollout_steps(&w.part, cap);
+                norm.il += match imitation_scenes(&config, &w.part, i) {
+                    Some(scenes) => imitation_count(&scenes.iter().collect::<Vec<_>>(), steps),
+                    None => imitation_count(&w.part.scenes, steps),
+                };
             }
             if let Some(labels) = &w.labels {
                 norm.bc += labels.count;
@@ -696,15 +725,12 @@ impl<'d> Trainer<'d> {
             for w in &work {
                 let steps = rollout_steps(&w.part, cap);
                 if method.uses_closed_loop_il() && w.part.is_nominal() && !warming_up {
-                    let perturbed = config
-                        .imitation
-                        .perturbation
-                        .map(|p| p.apply(&w.part.scenes, &w.part.slots, config.seed, i));
-                    let scenes: Vec<&Scene> = match &perturbed {
+                    let changed = imitation_scenes(&config, &w.part, i);
+                    let scenes: Vec<&Scene> = match &changed {
                         Some(scenes) => scenes.iter().collect(),
                         None => w.part.scenes.clone(),
                     };
-                    let batch = match (&w.experience, &perturbed) {
+                    let batch = match (&w.experience, &changed) {
                         (Some(e), None) => e.batch.clone(),
                         _ => SceneBatch::from_scenes(&scenes, &device.clone().inner())?,
                     };
