@@ -437,3 +437,36 @@ fn logged_action_rms_is_the_maximum_likelihood_sigma() {
         "NLL {low} / {at} / {high} at 0.9 / 1 / 1.1 x RMS"
     );
 }
+
+/// The lane-node curvature reaches the network multiplied by `lane_curvature_scale`, every
+/// other feature as before; the A9's curves are then of order one at 1000.
+#[test]
+fn lane_curvature_scale_multiplies_the_curvature_feature_alone() {
+    let device = device(false);
+    let batch = SceneBatch::from_scenes(&test_scenes(2), &device).expect("batch");
+    let features = |scale: f64| {
+        let config = ModelConfig {
+            lane_curvature_scale: scale,
+            ..ModelConfig::small()
+        };
+        values(LaneInput::from_batch(&batch, &config).features)
+    };
+    let (default, scaled) = (features(100.0), features(1000.0));
+    let width = rtr::map::LANE_NODE_FEATURES;
+    let mut largest_curvature = 0f32;
+    for (k, (d, s)) in default.iter().zip(&scaled).enumerate() {
+        if k % width == 2 {
+            assert!(
+                (s - 10.0 * d).abs() <= 1e-5 * s.abs().max(1.0),
+                "curvature {d} -> {s}"
+            );
+            largest_curvature = largest_curvature.max(s.abs());
+        } else {
+            assert_eq!(d, s, "feature {} of node {}", k % width, k / width);
+        }
+    }
+    assert!(
+        (0.1..=1.0).contains(&largest_curvature),
+        "the A9's largest curvature x 1000: {largest_curvature}"
+    );
+}

@@ -50,6 +50,19 @@ pub struct ModelConfig {
     /// Off by default (the paper's edges; every model trained before it loads unchanged).
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub agent_edge_motion: bool,
+    /// Multiplier bringing lane-node curvature (1/m) to network units (the other lane-node
+    /// features' scales are fixed in [`super::input`]). The default 100 (every model trained
+    /// before this field loads unchanged) puts a 100 m radius at 1 but the A9's 3.3 km radius
+    /// at 0.03; 1000 puts motorway curves (0.0003 to 0.003 1/m) at 0.3 to 3.
+    #[serde(skip_serializing_if = "is_default_curvature_scale")]
+    pub lane_curvature_scale: f64,
+}
+
+/// [`ModelConfig::lane_curvature_scale`]'s default.
+pub const DEFAULT_LANE_CURVATURE_SCALE: f64 = 100.0;
+
+fn is_default_curvature_scale(scale: &f64) -> bool {
+    *scale == DEFAULT_LANE_CURVATURE_SCALE
 }
 
 impl Default for ModelConfig {
@@ -69,6 +82,7 @@ impl Default for ModelConfig {
             action_scale: [2.0, 0.02],
             log_std_range: [-4.0, 1.0],
             agent_edge_motion: false,
+            lane_curvature_scale: DEFAULT_LANE_CURVATURE_SCALE,
         }
     }
 }
@@ -177,6 +191,15 @@ impl ModelConfig {
                 format!("expected two scales > 0, got {:?}", self.action_scale),
             );
         }
+        if !(self.lane_curvature_scale.is_finite() && self.lane_curvature_scale > 0.0) {
+            return fail(
+                "lane_curvature_scale",
+                format!(
+                    "expected a finite scale > 0 (m), got {}",
+                    self.lane_curvature_scale
+                ),
+            );
+        }
         let [lo, hi] = self.log_std_range;
         // exp(5) = 148 action scales is already no action; below exp(-20) sigma underflows f32.
         if !(lo >= -20.0 && hi <= 5.0 && lo < hi) {
@@ -235,6 +258,11 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(err.contains("hidden") && err.contains("at most"), "{err}");
+
+        let err = ModelConfig::from_toml_str("lane_curvature_scale = 0.0\n", "m.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("lane_curvature_scale"), "{err}");
 
         let err = ModelConfig::from_toml_str("log_std_range = [1.0, -1.0]\n", "m.toml")
             .unwrap_err()

@@ -13,11 +13,12 @@ use crate::scene::{NeighbourTensors, SceneBatch};
 use crate::sim::Frame;
 
 /// Multipliers bringing lane-node features to order one: length / 10 m, width / 3.5 m,
-/// curvature x 100 m, speed limit / 30 m/s; the mark one-hots stay as they are.
+/// curvature x [`ModelConfig::lane_curvature_scale`] (the placeholder here is replaced), speed
+/// limit / 30 m/s; the mark one-hots stay as they are.
 const LANE_FEATURE_SCALE: [f32; LANE_NODE_FEATURES] = [
     0.1,
     1.0 / 3.5,
-    100.0,
+    f32::NAN,
     1.0 / 30.0,
     1.0,
     1.0,
@@ -28,6 +29,9 @@ const LANE_FEATURE_SCALE: [f32; LANE_NODE_FEATURES] = [
     1.0,
     1.0,
 ];
+
+/// Index of the curvature in [`crate::map::LaneNode::features`].
+const CURVATURE_FEATURE: usize = 2;
 
 /// Speed (m/s) to network units.
 const SPEED_SCALE: f64 = 0.1;
@@ -154,8 +158,10 @@ pub struct LaneInput {
 impl LaneInput {
     pub fn from_batch(batch: &SceneBatch, config: &ModelConfig) -> Self {
         let device = batch.lane_features.device();
+        let mut scales = LANE_FEATURE_SCALE;
+        scales[CURVATURE_FEATURE] = config.lane_curvature_scale as f32;
         let scale = Tensor::<1>::from_data(
-            TensorData::new(LANE_FEATURE_SCALE.to_vec(), [LANE_NODE_FEATURES]),
+            TensorData::new(scales.to_vec(), [LANE_NODE_FEATURES]),
             &device,
         )
         .reshape([1, 1, LANE_NODE_FEATURES]);
