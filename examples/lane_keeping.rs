@@ -1,11 +1,13 @@
 //! `cargo run --release --example lane_keeping -- CHECKPOINT...`: how well trained policies keep
 //! their lane, away from the traffic they learned it in.
 //!
-//! 1. *A lone car*: one car on the lane centre with a straight 2 s history at 20, 25, 30, 35 and
-//!    40 m/s, on each of the A9's six main lanes and on each lane of a generated straight
-//!    3 x 3.75 m road, simulated for 6 s. Reported: how far it is from the nearest lane centre
-//!    (mean over the 6 s), and the share of cars in another lane (or off the road) at 6 s.
-//!    A driver keeping its lane stays near 0 m and 0 %.
+//! 1. *A lone car*: one car on the lane centre with a 2 s history along it at 20, 25, 30, 35 and
+//!    40 m/s, on each of the A9's six main lanes, on each lane of a generated straight
+//!    3 x 3.75 m road, and on generated 3 x 3.75 m roads curving at the A9's curvature
+//!    (0.0003 1/m, a 3.3 km radius; its two carriageways curve one each way) and at 0.001 1/m,
+//!    to the left (+) and to the right (-), started on the arc; simulated for 6 s. Reported:
+//!    how far it is from the nearest lane centre (mean over the 6 s), and the share of cars in
+//!    another lane (or off the road) at 6 s. A driver keeping its lane stays near 0 m and 0 %.
 //! 2. *Alone vs in traffic*: every controlled agent of the A9 test scenes, simulated in its
 //!    logged traffic and with every other vehicle removed (same history, same map). Reported:
 //!    the mean distance to its logged position at 2, 4 and 6 s, each car compared only while
@@ -25,6 +27,14 @@ use rtr::scene::{AgentRole, Scene, SceneAgent};
 const SPEEDS: [f64; 5] = [20.0, 25.0, 30.0, 35.0, 40.0];
 const HISTORY_STEPS: usize = 4;
 const FUTURE_STEPS: usize = 12;
+/// Curvatures (1/m) of the generated curved roads: the A9's and a sharper one, each way.
+const CURVATURES: [f64; 4] = [0.0003, -0.0003, 0.001, -0.001];
+/// The curved roads' length and where the lone cars start on them: a generated curve is a
+/// line for its first 20 %, a clothoid for 15 % and the arc for 30 % (420-780 m here), so the
+/// cars start 10 m into the arc and stay on it for the 6 s at up to 40 m/s (240 m); their 2 s
+/// history lies on the clothoid into it.
+const CURVE_LENGTH_M: f64 = 1200.0;
+const CURVE_START_M: f64 = 430.0;
 /// Lanes of a map's main road shorter than this are ramps or gores: skipped.
 const MIN_LANE_LENGTH_M: f64 = 60.0;
 /// Successor hops searched when deciding whether a car is still in its start lane.
@@ -43,10 +53,27 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "straight 3 x 3.75 m",
     )?);
     let straight_graph = Arc::new(LaneGraph::build(&straight, 10.0));
-    let lone_sets = [
-        ("A9", lone_cars(&dataset.map, &dataset.lane_graph, Some(0))),
-        ("straight", lone_cars(&straight, &straight_graph, None)),
+    let mut lone_sets = vec![
+        (
+            "A9".to_string(),
+            lone_cars(&dataset.map, &dataset.lane_graph, Some(0), None),
+        ),
+        (
+            "straight".to_string(),
+            lone_cars(&straight, &straight_graph, None, None),
+        ),
     ];
+    for curvature in CURVATURES {
+        let curve = Arc::new(Map::from_opendrive(
+            &rtr::map::curve(3, 3.75, CURVE_LENGTH_M, curvature)?,
+            "curve",
+        )?);
+        let graph = Arc::new(LaneGraph::build(&curve, 10.0));
+        lone_sets.push((
+            format!("curve {curvature:+} 1/m"),
+            lone_cars(&curve, &graph, None, Some(CURVE_START_M)),
+        ));
+    }
     let test = EvalScenes::nominal(&dataset)?;
     let alone = without_traffic(&test);
     let config = EvalConfig {
@@ -107,9 +134,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     Ok(())
 }
 
-/// One scene per (lane, speed): a lone car on the lane centre with a straight constant-speed
-/// history. `road`: only that road's lanes (the A9 main road), else every lane.
-fn lone_cars(map: &Arc<Map>, graph: &Arc<LaneGraph>, road: Option<usize>) -> EvalScenes {
+/// One scene per (lane, speed): a lone car on the lane centre with a constant-speed history
+/// along it. `road`: only that road's lanes (the A9 main road), else every lane. `start`: the
+/// car's station at the current step (default 10 m, or half a short lane).
+fn lone_cars(
+    map: &Arc<Map>,
+    graph: &Arc<LaneGraph>,
+    road: Option<usize>,
+    start: Option<f64>,
+) -> EvalScenes {
     let mut scenes = Vec::new();
     for (index, lane) in map.lanes().iter().enumerate() {
         let usable = lane.is_graph_lane()
@@ -120,7 +153,7 @@ fn lone_cars(map: &Arc<Map>, graph: &Arc<LaneGraph>, road: Option<usize>) -> Eva
             continue;
         }
         for speed in SPEEDS {
-            let start = 10.0_f64.min(lane.length() / 2.0);
+            let start = start.unwrap_or(10.0_f64.min(lane.length() / 2.0));
             let states = (0..=HISTORY_STEPS + FUTURE_STEPS)
                 .map(|k| {
                     let s = start + speed * (k as f64 - HISTORY_STEPS as f64) * 0.5;
