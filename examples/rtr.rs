@@ -29,11 +29,11 @@ use rtr::train::TrainConfig;
 /// The main comparison's converged models (issue 18's recipe), in table order.
 const COMPARISON: [&str; 6] = [
     "bc_recipe",
-    "il_us101",
-    "rl_recipe",
-    "rl_shaped_recipe",
+    "il_dropout80",
+    "rl_dropout80",
+    "rl_shaped_dropout80",
     "bc_rl_recipe",
-    "rtr_recipe",
+    "rtr_dropout80",
 ];
 
 #[derive(Parser)]
@@ -44,7 +44,7 @@ struct Args {
     /// Folder for runs, scenarios, the table and the figures.
     #[arg(long, default_value = "results/demo")]
     out: PathBuf,
-    /// The run file of the training step (default: a 6-iteration RTR fine-tune of models/il_us101).
+    /// The run file of the training step (default: a 6-iteration RTR fine-tune of models/il_dropout80).
     #[arg(long)]
     run_file: Option<PathBuf>,
     /// Device backend for training and evaluation (flex in the default build).
@@ -157,7 +157,7 @@ fn run(args: Args) -> rtr::Result<()> {
             .position(|n| n.ends_with(folder))
             .map(|k| &results[k])
     };
-    if let (Some(il), Some(rtr)) = (find("models/il_us101"), find("models/rtr_recipe")) {
+    if let (Some(il), Some(rtr)) = (find("models/il_dropout80"), find("models/rtr_dropout80")) {
         println!("{}", headline(il, rtr));
     }
     let written = write_study(&args.out, &entries, &results, &scenes, &device)?;
