@@ -10,11 +10,10 @@
 //! ChauffeurNet (Bansal et al., 2018) taught its imitation policy to recover. Measured here at
 //! 0.5 m / 0.01 rad from the recipe IL model, it did not (`experiments/recipe/results.md`).
 
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::Rng;
 use serde::{Deserialize, Serialize};
 
-use super::trainer::stream_seed;
+use super::trainer::seeded_per_scene;
 use crate::scene::{AgentRole, Scene};
 
 /// Largest perturbation each control may draw, uniformly in +-.
@@ -41,18 +40,14 @@ impl StartPerturbation {
         seed: u64,
         iteration: usize,
     ) -> Vec<Scene> {
-        scenes
-            .iter()
-            .zip(slots)
-            .map(|(scene, &slot)| {
-                let mut rng = ChaCha8Rng::seed_from_u64(stream_seed(
-                    seed,
-                    iteration,
-                    PERTURBATION_STREAM + slot as u64,
-                ));
-                self.perturb_scene(scene, &mut rng)
-            })
-            .collect()
+        seeded_per_scene(
+            scenes,
+            slots,
+            seed,
+            iteration,
+            PERTURBATION_STREAM,
+            |scene, rng| self.perturb_scene(scene, rng),
+        )
     }
 
     fn perturb_scene(&self, scene: &Scene, rng: &mut impl Rng) -> Scene {

@@ -89,6 +89,28 @@ fn imitation_scenes(config: &TrainConfig, part: &Part, iteration: usize) -> Opti
     scenes
 }
 
+/// `change` applied to each of `scenes` with a generator of its own, seeded by `seed`,
+/// `iteration` and stream `stream + slot` (`slots`: each scene's position in its draw), so a
+/// scene draws the same however its draw is batched, and a resumed run draws the same again.
+pub fn seeded_per_scene(
+    scenes: &[&Scene],
+    slots: &[usize],
+    seed: u64,
+    iteration: usize,
+    stream: u64,
+    change: impl Fn(&Scene, &mut ChaCha8Rng) -> Scene,
+) -> Vec<Scene> {
+    scenes
+        .iter()
+        .zip(slots)
+        .map(|(scene, &slot)| {
+            let mut rng =
+                ChaCha8Rng::seed_from_u64(stream_seed(seed, iteration, stream + slot as u64));
+            change(scene, &mut rng)
+        })
+        .collect()
+}
+
 /// Serialises seeding and initialisation through the devices' global RNG within a process.
 static DEVICE_RNG: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
