@@ -237,3 +237,112 @@ fn the_offroad_check_sees_boxes_moved_off_the_carriageway() {
     }
     assert_eq!(offroad, total);
 }
+
+/// The A9 test scenes on their road bent by 0.003 1/m (a 333 m radius, ten times the A9's).
+fn bent_test_scenes() -> Vec<rtr::scene::Scene> {
+    rtr::data::bend_scenes(&common::a9_scenes().test, 0.003).expect("the A9 bends")
+}
+
+#[test]
+fn bent_scenes_keep_every_driver_in_its_lane_and_on_the_road() {
+    let original = &common::a9_scenes().test;
+    let bent = bent_test_scenes();
+    assert_eq!(bent.len(), original.len());
+    let (mut checked, mut status_changed) = (0, 0);
+    for (before, after) in original.iter().zip(&bent) {
+        assert!(after.id.starts_with(&before.id) && after.id.ends_with("~bend0.003"));
+        for (a, b) in before.agents.iter().zip(&after.agents) {
+            assert_eq!(a.valid, b.valid);
+            for step in (0..a.states.len()).filter(|&k| a.valid[k]) {
+                let (sa, sb) = (&a.states[step], &b.states[step]);
+                let pa = before.map.lane_projection([sa.x, sa.y], sa.heading);
+                let pb = after.map.lane_projection([sb.x, sb.y], sb.heading);
+                if let (Some(pa), Some(pb)) = (pa, pb) {
+                    assert_eq!(pa.lane, pb.lane, "{} track {}", before.id, a.track_id);
+                    assert!((pa.lateral - pb.lateral).abs() < 0.01, "{pa:?} {pb:?}");
+                    assert!((pa.heading_error - pb.heading_error).abs() < 0.01);
+                    checked += 1;
+                }
+                let on_road = |scene: &rtr::scene::Scene, agent: &rtr::scene::SceneAgent| {
+                    scene.map.box_on_road(&agent.footprint(step).unwrap())
+                };
+                status_changed += usize::from(on_road(before, a) != on_road(after, b));
+            }
+        }
+    }
+    assert!(checked > 10_000, "{checked} poses projected");
+    // A rigid box on a bent road can only change status right at a boundary.
+    assert!(
+        status_changed * 1000 < checked,
+        "{status_changed} of {checked} changed"
+    );
+}
+
+#[test]
+fn bent_scenes_move_as_fast_as_their_speeds_say_and_their_lanes_turn() {
+    // Over one 0.5 s step a logged car covers about its mean speed x dt; on the bent road the
+    // outer lanes are longer and the inner shorter, so the speeds must be scaled with them.
+    let original = &common::a9_scenes().test;
+    let bent = bent_test_scenes();
+    let mismatch = |scenes: &[rtr::scene::Scene], rescale: bool| {
+        let (mut sum, mut n) = (0.0, 0);
+        for (scene, source) in scenes.iter().zip(original) {
+            for (agent, logged) in scene.agents.iter().zip(&source.agents) {
+                for k in 1..agent.states.len() {
+                    if !(agent.valid[k] && agent.valid[k - 1]) {
+                        continue;
+                    }
+                    let (p, q) = (&agent.states[k - 1], &agent.states[k]);
+                    let travelled = (q.x - p.x).hypot(q.y - p.y) / scene.dt;
+                    let speeds = if rescale {
+                        [p.speed, q.speed]
+                    } else {
+                        [logged.states[k - 1].speed, logged.states[k].speed]
+                    };
+                    sum += (travelled - 0.5 * (speeds[0] + speeds[1])).abs();
+                    n += 1;
+                }
+            }
+        }
+        sum / n as f64
+    };
+    let as_logged = mismatch(original, true);
+    let bent_scaled = mismatch(&bent, true);
+    let bent_unscaled = mismatch(&bent, false);
+    assert!(
+        bent_scaled < as_logged + 0.02,
+        "{bent_scaled} vs {as_logged} m/s"
+    );
+    assert!(
+        bent_unscaled > bent_scaled + 0.1,
+        "{bent_unscaled} vs {bent_scaled} m/s"
+    );
+
+    // Lanes of the carriageway travelling along the reference line turn 0.003 1/m more to the
+    // left; the other carriageway's, travelling against it, as much more to the right. (Node
+    // counts differ: outer lanes get longer, inner ones shorter.)
+    let graph = |scenes: &[rtr::scene::Scene]| scenes[0].lane_graph.clone();
+    let (before, after) = (graph(original), graph(&bent));
+    let mean_curvature = |g: &rtr::map::LaneGraph, lane: usize| {
+        let nodes = &g.nodes[g.lane_nodes[lane].clone()];
+        nodes.iter().map(|n| n.curvature).sum::<f64>() / nodes.len() as f64
+    };
+    let mut lanes = 0;
+    for (lane, info) in original[0].map.lanes().iter().enumerate() {
+        if before.lane_nodes[lane].is_empty() {
+            continue;
+        }
+        let expected = if info.along_reference() {
+            0.003
+        } else {
+            -0.003
+        };
+        let change = mean_curvature(&after, lane) - mean_curvature(&before, lane);
+        assert!(
+            (change - expected).abs() < 0.0003,
+            "lane {lane}: {change} vs {expected}"
+        );
+        lanes += 1;
+    }
+    assert!(lanes >= 6, "{lanes} graph lanes");
+}

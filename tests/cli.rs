@@ -79,6 +79,14 @@ fn bad_arguments_fail_with_a_message() {
     let out = rtr(&["render", "--out", "scene.bmp"]);
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains(".png or .svg"));
+
+    let out = rtr(&["eval", "--idm", "--set", "nominal", "--a9-bend", "-0.05"]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("--a9-bend -0.05") && err.contains("0.01"),
+        "{err}"
+    );
 }
 
 #[test]

@@ -814,6 +814,63 @@ fn run_files_with_mistakes_are_named() {
         err.to_string().contains("imitation.agent_dropout") && err.to_string().contains("[0, 1)"),
         "{err}"
     );
+    let err = TrainConfig::from_toml_str(
+        "method = \"IL\"\n[[data.a9_bends]]\ncurvature = 0.05\nweight = 0.1\n",
+        "il.toml",
+    )
+    .expect_err("a 20 m radius");
+    assert!(
+        err.to_string().contains("data.a9_bends.curvature") && err.to_string().contains("0.01"),
+        "{err}"
+    );
+    let err = TrainConfig::from_toml_str(
+        "method = \"IL\"\n[[data.a9_bends]]\ncurvature = 0.001\nweight = -1.0\n",
+        "il.toml",
+    )
+    .expect_err("a negative weight");
+    assert!(err.to_string().contains("data.a9_bends.weight"), "{err}");
+    let err = TrainConfig::from_toml_str(
+        "method = \"IL\"\n[[data.a9_bends]]\ncurvature = 0.001\n",
+        "il.toml",
+    )
+    .expect_err("no weight");
+    assert!(err.to_string().contains("weight"), "{err}");
+}
+
+#[test]
+fn a9_bends_are_recorded_sources_of_their_own() {
+    use rand::SeedableRng;
+    use rtr::train::{A9Bend, InitialState};
+    let config = DataConfig {
+        nominal_limit: Some(6),
+        a9_weight: 0.0,
+        a9_bends: vec![A9Bend {
+            curvature: -0.002,
+            weight: 1.0,
+        }],
+        ..DataConfig::default()
+    };
+    let data = TrainingData::load(common::a9(), &config, false).expect("bent sources load");
+    assert_eq!(data.nominal.len(), 12);
+    assert_eq!(data.nominal_sources.len(), 2);
+    // The warm start's sigma is measured on the recorded scenes, never on their bent copies.
+    assert_eq!(data.bent, 6..12);
+    let recorded: Vec<_> = data.recorded().map(|s| s.id.clone()).collect();
+    assert_eq!(recorded.len(), 6);
+    assert!(
+        recorded.iter().all(|id| !id.contains("~bend")),
+        "{recorded:?}"
+    );
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+    // The A9 as recorded has weight 0: every draw is a bent scene, of the same recorded window.
+    for state in data.sample(&mut rng, 20, 0.0) {
+        let InitialState::Nominal(k) = state else {
+            panic!("{state:?}")
+        };
+        assert!(k >= 6, "drew the unbent scene {k}");
+        let id = &data.nominal[k].id;
+        assert_eq!(id, &format!("{}~bend-0.002", data.nominal[k - 6].id));
+    }
 }
 
 #[test]

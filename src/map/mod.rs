@@ -5,6 +5,7 @@
 //! [`LaneGraph::build`]. Lanelet networks (CommonRoad) enter through [`Map::from_lanelets`]
 //! into the same [`Lane`]s and lane graph.
 
+mod bend;
 mod lane_graph;
 mod lanelet;
 mod lanelet_surface;
@@ -28,6 +29,7 @@ mod test_maps;
 #[cfg(test)]
 mod xodr_parse_tests;
 
+pub use bend::{BentPose, MAX_BEND_CURVATURE, RoadBend};
 pub use lane_graph::{
     LANE_NODE_FEATURE_NAMES, LANE_NODE_FEATURES, LaneGraph, LaneNode, NeighbourTable,
     mark_category, neighbour_table,

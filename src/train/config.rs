@@ -377,6 +377,20 @@ pub struct DataConfig {
     /// uniformly. Empty (the default): A9 only.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub commonroad: Vec<CommonRoadSource>,
+    /// More recorded sources: the A9 training split on its road bent by a curvature (not in
+    /// the paper; `crate::data::bend_scenes`), each with its weight like a CommonRoad source.
+    /// Empty (the default): the A9 as recorded only.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub a9_bends: Vec<A9Bend>,
+}
+
+/// The A9 training split on its road with `curvature` (1/m, positive to the left along the
+/// reference line) added, drawn with `weight` among the recorded sources.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct A9Bend {
+    pub curvature: f64,
+    pub weight: f64,
 }
 
 /// CommonRoad scenario files (a file or a folder of `.xml` / `.xml.gz`) as a source of
@@ -403,6 +417,7 @@ impl Default for DataConfig {
             max_rollout_steps: None,
             a9_weight: 1.0,
             commonroad: Vec::new(),
+            a9_bends: Vec::new(),
         }
     }
 }
@@ -594,17 +609,36 @@ impl TrainConfig {
                 &format!("expected m/s in (0, {max_speed}]"),
             );
         }
-        let commonroad_weight: f64 = self.data.commonroad.iter().map(|c| c.weight).sum();
-        if self.data.a9_weight + commonroad_weight <= 0.0 {
+        if self.data.a9_bends.iter().any(|b| !weight(b.weight)) {
+            return fail("data.a9_bends.weight", "expected a finite weight >= 0");
+        }
+        let max_bend = crate::map::MAX_BEND_CURVATURE;
+        if self
+            .data
+            .a9_bends
+            .iter()
+            .any(|b| !(b.curvature.is_finite() && b.curvature.abs() <= max_bend))
+        {
             return fail(
-                "data.a9_weight",
-                "the recorded sources' weights (A9 and data.commonroad) sum to 0",
+                "data.a9_bends.curvature",
+                &format!("expected a finite curvature (1/m) within +-{max_bend}"),
             );
         }
-        if self.data.curated.is_some() && !self.data.commonroad.is_empty() {
+        let other_weight: f64 = self.data.commonroad.iter().map(|c| c.weight).sum::<f64>()
+            + self.data.a9_bends.iter().map(|b| b.weight).sum::<f64>();
+        if self.data.a9_weight + other_weight <= 0.0 {
+            return fail(
+                "data.a9_weight",
+                "the recorded sources' weights (A9, data.commonroad, data.a9_bends) sum to 0",
+            );
+        }
+        if self.data.curated.is_some()
+            && !(self.data.commonroad.is_empty() && self.data.a9_bends.is_empty())
+        {
             return fail(
                 "data.curated",
-                "curated scenes come from the A9 split; drop data.commonroad or data.curated",
+                "curated scenes come from the A9 split as recorded; drop data.commonroad and \
+                 data.a9_bends, or data.curated",
             );
         }
         if !(self.lambda.is_finite() && self.lambda >= 0.0) {

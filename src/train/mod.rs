@@ -33,8 +33,8 @@ pub mod trainer;
 
 pub use checkpoint::{Checkpoint, LoopState, load_policy};
 pub use config::{
-    CommonRoadSource, DataConfig, ImitationConfig, InitConfig, Method, OptimizerConfig, PpoConfig,
-    PpoVariant, ReferenceConfig, RunConfig, ShapingConfig, TrainConfig,
+    A9Bend, CommonRoadSource, DataConfig, ImitationConfig, InitConfig, Method, OptimizerConfig,
+    PpoConfig, PpoVariant, ReferenceConfig, RunConfig, ShapingConfig, TrainConfig,
 };
 pub use curves::CurveRow;
 pub use sources::{InitialState, Part, TrainingData};

@@ -12,7 +12,7 @@ use rand::Rng;
 
 use super::config::DataConfig;
 use crate::data::commonroad::{commonroad_scenes, load_commonroad};
-use crate::data::{A9Dataset, SceneConfig, TrafficStatistics, read_scene_list};
+use crate::data::{A9Dataset, SceneConfig, TrafficStatistics, bend_scenes, read_scene_list};
 use crate::error::{Error, Result};
 use crate::scenario::{
     ConcreteScenario, GenerateConfig, ScenarioSet, builtin_families, generate_sets, load_families,
@@ -27,6 +27,9 @@ pub struct TrainingData {
     pub nominal: Vec<Scene>,
     /// The recorded sources in `nominal`: (index range, weight). One entry (A9) by default.
     pub nominal_sources: Vec<(Range<usize>, f64)>,
+    /// Where in `nominal` the bent copies of the A9 split lie (`data.a9_bends`; empty range
+    /// without them): scenes made from the recorded ones, not recorded themselves.
+    pub bent: Range<usize>,
     /// Long-tail training scenarios and their scenes (no logs of the policy's agents beyond the
     /// reference IDM run, so no imitation loss is taken on them).
     pub longtail: Vec<(ConcreteScenario, Scene)>,
@@ -73,6 +76,14 @@ impl TrainingData {
             ));
         }
         let mut nominal_sources = vec![(0..nominal.len(), config.a9_weight)];
+        let a9_len = nominal.len();
+        for bend in &config.a9_bends {
+            let bent = bend_scenes(&nominal[..a9_len], bend.curvature)?;
+            let start = nominal.len();
+            nominal.extend(bent);
+            nominal_sources.push((start..nominal.len(), bend.weight));
+        }
+        let bent = a9_len..nominal.len();
         for source in &config.commonroad {
             let clips = load_commonroad(std::slice::from_ref(&source.path), source.speed_limit)?;
             let (scenes, _) = commonroad_scenes(&clips, &SceneConfig::default())?;
@@ -121,9 +132,19 @@ impl TrainingData {
         Ok(Self {
             nominal,
             nominal_sources,
+            bent,
             longtail,
             curated,
         })
+    }
+
+    /// The nominal scenes as recorded (every source but the bent copies), in order.
+    pub fn recorded(&self) -> impl Iterator<Item = &Scene> {
+        self.nominal
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| !self.bent.contains(k))
+            .map(|(_, scene)| scene)
     }
 
     /// `count` i.i.d. initial states: from the alpha share (curated scenes if any, else the

@@ -230,7 +230,8 @@ pub struct IterationTiming {
     pub update_s: f64,
 }
 
-/// Nominal training scenes the warm start's sigma is measured on (every k-th, for a spread).
+/// Recorded nominal training scenes the warm start's sigma is measured on (every k-th, for a
+/// spread).
 const STD_SCENES: usize = 128;
 
 /// `policy` with the sigma of [`crate::train::config::InitConfig::std_from_logs`] times
@@ -243,8 +244,11 @@ fn std_from_logs(
     config: &TrainConfig,
     device: &Device,
 ) -> Result<PolicyNetwork> {
-    let stride = data.nominal.len().div_ceil(STD_SCENES).max(1);
-    let scenes: Vec<&crate::scene::Scene> = data.nominal.iter().step_by(stride).collect();
+    // Recorded scenes only: the bent copies of data.a9_bends are the same drivers again, and
+    // leaving them out keeps the sample (every k-th scene) what it was without them.
+    let recorded: Vec<&crate::scene::Scene> = data.recorded().collect();
+    let stride = recorded.len().div_ceil(STD_SCENES).max(1);
+    let scenes: Vec<&crate::scene::Scene> = recorded.into_iter().step_by(stride).collect();
     let (std, count) =
         super::imitation::logged_action_rms(&policy, &scenes, &config.limits, 16, device)?;
     eprintln!(
@@ -268,7 +272,9 @@ fn std_from_logs(
         let range = [lo.exp(), hi.exp()].map(|f| f * config.model.action_scale[k]);
         if !(range[0]..=range[1]).contains(sigma) {
             return Err(Error::InvalidArgument(format!(
-                "{what}: the {control} sigma {sigma:.3e} (from the logs x init.std_scale) is                  outside what the policy head can express, {:.3e} to {:.3e} (model.action_scale x                  exp(model.log_std_range)): change init.std_scale or model.log_std_range",
+                "{what}: the {control} sigma {sigma:.3e} (from the logs x init.std_scale) is \
+                 outside what the policy head can express, {:.3e} to {:.3e} (model.action_scale \
+                 x exp(model.log_std_range)): change init.std_scale or model.log_std_range",
                 range[0], range[1]
             )));
         }

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use clap::Args;
 
 use rtr::backend::Backend;
-use rtr::data::{SceneConfig, commonroad};
+use rtr::data::{SceneConfig, bend_scenes, commonroad};
 use rtr::eval::study::{evaluate_entries, load_entries, write_study};
 use rtr::eval::{EvalConfig, EvalScenes, EvalSet, load_sets, markdown_table};
 use rtr::io::{OutputKind, StagedFolder, check_output};
@@ -36,6 +36,11 @@ pub struct EvalArgs {
     /// Speed limit (m/s) of CommonRoad lanes whose file gives none (default: 130 km/h).
     #[arg(long, requires = "commonroad")]
     commonroad_speed_limit: Option<f64>,
+    /// Evaluate the nominal set on the A9 road bent by this curvature (1/m, added to its
+    /// reference line; not in the paper): the same recorded test scenes on a road of another
+    /// curvature, to see whether policies follow the lane or the A9's curve.
+    #[arg(long, allow_hyphen_values = true)]
+    a9_bend: Option<f64>,
     /// Write results.json, table.md and the figures here.
     #[arg(long)]
     out: Option<PathBuf>,
@@ -71,6 +76,21 @@ pub fn run(args: EvalArgs) -> Result<()> {
     let dataset = args.data.load()?;
     sets.retain(|&s| s != EvalSet::CommonRoad || commonroad.is_none());
     let mut scenes = load_sets(&dataset, args.scenarios.as_deref(), &sets)?;
+    if let Some(curvature) = args.a9_bend {
+        let max = rtr::map::MAX_BEND_CURVATURE;
+        if !(curvature.is_finite() && curvature.abs() <= max) {
+            return Err(Error::InvalidArgument(format!(
+                "--a9-bend {curvature}: expected a curvature (1/m) within +-{max}"
+            )));
+        }
+        let nominal = scenes
+            .iter_mut()
+            .find(|s| s.set == EvalSet::Nominal)
+            .ok_or_else(|| {
+                Error::InvalidArgument("--a9-bend bends the nominal set: add it to --set".into())
+            })?;
+        nominal.scenes = bend_scenes(&nominal.scenes, curvature)?;
+    }
     let mut clip_summaries = Vec::new();
     if let Some((set, summaries)) = commonroad {
         sets.push(EvalSet::CommonRoad);
