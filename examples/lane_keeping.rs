@@ -4,8 +4,9 @@
 //! 1. *A lone car*: one car on the lane centre with a 2 s history along it at 20, 25, 30, 35 and
 //!    40 m/s, on each of the A9's six main lanes, on each lane of a generated straight
 //!    3 x 3.75 m road, and on generated 3 x 3.75 m roads curving at the A9's curvature
-//!    (0.0003 1/m, a 3.3 km radius; its two carriageways curve one each way) and at 0.001 1/m,
-//!    to the left (+) and to the right (-), started on the arc; simulated for 6 s. Reported:
+//!    (0.0003 1/m, a 3.3 km radius; its two carriageways curve one each way), at 0.001 and at
+//!    0.002 1/m (the generated long-tail roads curve at up to 0.0028), to the left (+) and to
+//!    the right (-), started on the arc; simulated for 6 s. Reported:
 //!    how far it is from the nearest lane centre (mean over the 6 s), and the share of cars in
 //!    another lane (or off the road) at 6 s. A driver keeping its lane stays near 0 m and 0 %.
 //! 2. *Alone vs in traffic*: every controlled agent of the A9 test scenes, simulated in its
@@ -27,8 +28,8 @@ use rtr::scene::{AgentRole, Scene, SceneAgent};
 const SPEEDS: [f64; 5] = [20.0, 25.0, 30.0, 35.0, 40.0];
 const HISTORY_STEPS: usize = 4;
 const FUTURE_STEPS: usize = 12;
-/// Curvatures (1/m) of the generated curved roads: the A9's and a sharper one, each way.
-const CURVATURES: [f64; 4] = [0.0003, -0.0003, 0.001, -0.001];
+/// Curvatures (1/m) of the generated curved roads: the A9's and two sharper ones, each way.
+const CURVATURES: [f64; 6] = [0.0003, -0.0003, 0.001, -0.001, 0.002, -0.002];
 /// The curved roads' length and where the lone cars start on them: a generated curve is a
 /// line for its first 20 %, a clothoid for 15 % and the arc for 30 % (420-780 m here), so the
 /// cars start 10 m into the arc and stay on it for the 6 s at up to 40 m/s (240 m); their 2 s
