@@ -426,6 +426,37 @@ fn policy_values(run: &Path, config: &TrainConfig) -> Vec<f32> {
 }
 
 #[test]
+fn runs_keep_the_checkpoints_asked_for_and_resume_whatever_the_count() {
+    let config = |keep: Option<usize>| {
+        let mut c = tiny("IL", "", "");
+        c.optimizer.epochs = 4;
+        c.run.keep_checkpoints = keep;
+        c
+    };
+    let saved = |dir: &Path| {
+        let mut names: Vec<String> = std::fs::read_dir(dir.join("checkpoints"))
+            .expect("checkpoints folder")
+            .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+            .filter(|n| n.starts_with("iter-"))
+            .collect();
+        names.sort();
+        names
+    };
+    let default = tempfile::tempdir().expect("temp dir");
+    train(config(None), default.path(), false, None);
+    assert_eq!(saved(default.path()), ["iter-000003", "iter-000004"]);
+
+    let kept = tempfile::tempdir().expect("temp dir");
+    train(config(Some(3)), kept.path(), false, Some(2));
+    // Resumed asking for more: the count is how the run is stored, not what it is.
+    train(config(Some(10)), kept.path(), true, None);
+    assert_eq!(
+        saved(kept.path()),
+        ["iter-000001", "iter-000002", "iter-000003", "iter-000004"]
+    );
+}
+
+#[test]
 fn a_killed_and_resumed_run_equals_an_uninterrupted_one() {
     let config = || {
         let mut c = tiny("RTR", "alpha = 0.5", "");

@@ -27,8 +27,9 @@ const POLICY_OPTIMIZER: &str = "policy_optimizer.bpk";
 const VALUE_OPTIMIZER: &str = "value_optimizer.bpk";
 const STATE: &str = "state.json";
 const LATEST: &str = "latest";
-/// Checkpoints kept besides the newest (older ones are deleted).
-const KEEP: usize = 1;
+/// Checkpoints kept besides the newest (older ones are deleted) unless `run.keep_checkpoints`
+/// says otherwise.
+pub const DEFAULT_KEEP: usize = 1;
 
 /// Where the loop stands.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -190,9 +191,11 @@ pub fn has_checkpoint(run_dir: &Path) -> bool {
     run_dir.join("checkpoints").join(LATEST).exists()
 }
 
-/// Writes a checkpoint for `state.iteration` and points `latest` at it.
+/// Writes a checkpoint for `state.iteration`, points `latest` at it and deletes all but the
+/// `keep` checkpoints before it.
 pub fn save(
     run_dir: &Path,
+    keep: usize,
     policy: &PolicyNetwork,
     value: &ValueNetwork,
     policy_optimizer: &ModuleOptimizer,
@@ -237,12 +240,12 @@ pub fn save(
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::rename(&tmp, &dir).map_err(|e| Error::io(&dir, e))?;
     atomic_write(&root.join(LATEST), name.as_bytes())?;
-    prune(&root, &name)?;
+    prune(&root, &name, keep)?;
     Ok(dir)
 }
 
-/// Deletes all but the newest `KEEP + 1` checkpoint folders (never `newest`).
-fn prune(root: &Path, newest: &str) -> Result<()> {
+/// Deletes all but the newest `keep + 1` checkpoint folders (never `newest`).
+fn prune(root: &Path, newest: &str, keep: usize) -> Result<()> {
     let mut names: Vec<String> = std::fs::read_dir(root)
         .map_err(|e| Error::io(root, e))?
         .filter_map(|e| e.ok())
@@ -250,7 +253,7 @@ fn prune(root: &Path, newest: &str) -> Result<()> {
         .filter(|n| n.starts_with("iter-") && n.as_str() != newest)
         .collect();
     names.sort();
-    let excess = names.len().saturating_sub(KEEP);
+    let excess = names.len().saturating_sub(keep);
     for name in &names[..excess] {
         let path = root.join(name);
         std::fs::remove_dir_all(&path).map_err(|e| Error::io(&path, e))?;

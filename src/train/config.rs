@@ -435,6 +435,11 @@ pub struct RunConfig {
     pub devices: Option<usize>,
     /// Write a checkpoint every this many iterations (and always at the end).
     pub checkpoint_every: usize,
+    /// Checkpoints kept besides the newest (older ones are deleted); unset: 1. Keeping more
+    /// lets late checkpoints be evaluated side by side. How a run is stored, not what it
+    /// computes: `--resume` does not compare it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub keep_checkpoints: Option<usize>,
     /// Stop after this many iterations in all (tiny runs, tests); `None` = all epochs.
     pub max_iterations: Option<usize>,
 }
@@ -445,6 +450,7 @@ impl Default for RunConfig {
             backend: Backend::cpu_default(),
             devices: None,
             checkpoint_every: 1,
+            keep_checkpoints: None,
             max_iterations: None,
         }
     }
@@ -466,10 +472,11 @@ impl TrainConfig {
     /// What identifies a run for `--resume`: the config as TOML without `run.devices` and
     /// `run.backend` (how many workers computed a step, and on which backend, changes results
     /// by float rounding only: `tests/backends.rs`), so a run started on NdArray resumes on
-    /// Flex.
+    /// Flex; nor `run.keep_checkpoints` (how many are kept on disk).
     pub fn identity_toml(&self) -> Result<String> {
         let mut identity = self.clone();
         identity.run.devices = None;
+        identity.run.keep_checkpoints = None;
         identity.run.backend = Backend::NdArray;
         toml::to_string(&identity)
             .map_err(|e| Error::InvalidArgument(format!("config does not serialise: {e}")))

@@ -511,6 +511,10 @@ impl<'d> Trainer<'d> {
     fn save(&self) -> Result<PathBuf> {
         checkpoint::save(
             &self.run_dir,
+            self.config
+                .run
+                .keep_checkpoints
+                .unwrap_or(checkpoint::DEFAULT_KEEP),
             &self.policy,
             &self.value,
             &self.policy_optimizer,

@@ -28,6 +28,10 @@ pub struct TrainArgs {
     /// at start).
     #[arg(long)]
     scenarios: Option<PathBuf>,
+    /// Keep this many checkpoints besides the newest (default: the run file's
+    /// `run.keep_checkpoints`, else 1), e.g. to evaluate the last few side by side.
+    #[arg(long)]
+    keep_checkpoints: Option<usize>,
     #[command(flatten)]
     data: DataArgs,
 }
@@ -49,6 +53,9 @@ pub fn run(args: TrainArgs) -> Result<()> {
         }
         config.data.longtail_dir = Some(dir.clone());
         config.validate(&format!("{} with --scenarios", args.config.display()))?;
+    }
+    if let Some(keep) = args.keep_checkpoints {
+        config.run.keep_checkpoints = Some(keep);
     }
     // Checked here, not with the file: a finished run's config.toml loads in any build.
     if !config.run.backend.is_compiled() {
