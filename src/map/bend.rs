@@ -26,6 +26,14 @@ const PROJECTION_MARGIN: f64 = 150.0;
 /// folds at the centre of curvature.
 const MAX_OFFSET_SHARE: f64 = 0.5;
 
+/// Why `curvature` (1/m) cannot be a bend, or `None` when it can: the one check behind the
+/// run file's `data.a9_bends`, `rtr eval --a9-bend` and [`RoadBend::new`], each naming its field.
+pub fn bend_curvature_problem(curvature: f64) -> Option<String> {
+    (!(curvature.is_finite() && curvature.abs() <= MAX_BEND_CURVATURE)).then(|| {
+        format!("{curvature} 1/m; expected a finite curvature within +-{MAX_BEND_CURVATURE} 1/m")
+    })
+}
+
 /// A pose carried from the original road onto the bent one.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BentPose {
@@ -57,15 +65,8 @@ impl RoadBend {
     /// constant curvature to them gives an arc or a spiral again); a network of several roads,
     /// or a poly3 / paramPoly3 plan view, is refused by name.
     pub fn new(od: &OpenDrive, source_name: &str, added_curvature: f64) -> Result<Self> {
-        if !added_curvature.is_finite() || added_curvature.abs() > MAX_BEND_CURVATURE {
-            return Err(Error::invalid(
-                source_name,
-                "bend curvature",
-                format!(
-                    "{added_curvature} 1/m; expected a finite curvature within \
-                     +-{MAX_BEND_CURVATURE} 1/m"
-                ),
-            ));
+        if let Some(problem) = bend_curvature_problem(added_curvature) {
+            return Err(Error::invalid(source_name, "bend curvature", problem));
         }
         let [road] = od.roads.as_slice() else {
             return Err(Error::invalid(
@@ -102,10 +103,6 @@ impl RoadBend {
         &self.bent
     }
 
-    pub fn added_curvature(&self) -> f64 {
-        self.added_curvature
-    }
-
     /// Road coordinates (s, t) of `p` on the original reference line: t is the signed offset to
     /// the left.
     pub fn road_coordinates(&self, p: [f64; 2]) -> Result<(f64, f64)> {
@@ -116,22 +113,24 @@ impl RoadBend {
             .min_by(|a, b| a.1.total_cmp(&b.1))
             .map(|(s, _)| s)
             .unwrap_or(0.0);
-        // Newton on the foot point: the along-road residual over the arc-length rate at
-        // offset t; a few steps from a sample 1 m away reach rounding.
-        let mut s = nearest;
-        let mut t = 0.0;
-        for _ in 0..8 {
+        // (along-road, across-road) offset of `p` from the reference point at `s`.
+        let offsets = |s: f64| {
             let r = eval_road(&self.original, s);
             let (sin, cos) = r.hdg.sin_cos();
             let (dx, dy) = (p[0] - r.x, p[1] - r.y);
-            let along = dx * cos + dy * sin;
-            t = -dx * sin + dy * cos;
-            let rate = 1.0 - t * r.curvature;
-            s += along / rate.max(MAX_OFFSET_SHARE);
+            (dx * cos + dy * sin, -dx * sin + dy * cos, r.curvature)
+        };
+        // Newton on the foot point: the along-road residual over the arc-length rate at
+        // offset t; a few steps from a sample 1 m away reach rounding.
+        let mut s = nearest;
+        for _ in 0..8 {
+            let (along, t, curvature) = offsets(s);
             if along.abs() < 1e-10 {
                 break;
             }
+            s += along / (1.0 - t * curvature).max(MAX_OFFSET_SHARE);
         }
+        let (_, t, _) = offsets(s);
         let first = self.samples.first().map_or(0.0, |(s, _)| *s);
         let last = self.samples.last().map_or(0.0, |(s, _)| *s);
         if !(first..=last).contains(&s) || !t.is_finite() {

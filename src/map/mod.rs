@@ -29,7 +29,7 @@ mod test_maps;
 #[cfg(test)]
 mod xodr_parse_tests;
 
-pub use bend::{BentPose, MAX_BEND_CURVATURE, RoadBend};
+pub use bend::{BentPose, MAX_BEND_CURVATURE, RoadBend, bend_curvature_problem};
 pub use lane_graph::{
     LANE_NODE_FEATURE_NAMES, LANE_NODE_FEATURES, LaneGraph, LaneNode, NeighbourTable,
     mark_category, neighbour_table,

@@ -619,17 +619,13 @@ impl TrainConfig {
         if self.data.a9_bends.iter().any(|b| !weight(b.weight)) {
             return fail("data.a9_bends.weight", "expected a finite weight >= 0");
         }
-        let max_bend = crate::map::MAX_BEND_CURVATURE;
-        if self
+        if let Some(problem) = self
             .data
             .a9_bends
             .iter()
-            .any(|b| !(b.curvature.is_finite() && b.curvature.abs() <= max_bend))
+            .find_map(|b| crate::map::bend_curvature_problem(b.curvature))
         {
-            return fail(
-                "data.a9_bends.curvature",
-                &format!("expected a finite curvature (1/m) within +-{max_bend}"),
-            );
+            return fail("data.a9_bends.curvature", &problem);
         }
         let other_weight: f64 = self.data.commonroad.iter().map(|c| c.weight).sum::<f64>()
             + self.data.a9_bends.iter().map(|b| b.weight).sum::<f64>();

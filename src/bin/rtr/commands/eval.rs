@@ -65,6 +65,9 @@ pub fn run(args: EvalArgs) -> Result<()> {
     if let Some(out) = &args.out {
         check_output(out, OutputKind::Folder, "--out")?;
     }
+    if let Some(problem) = args.a9_bend.and_then(rtr::map::bend_curvature_problem) {
+        return Err(Error::InvalidArgument(format!("--a9-bend {problem}")));
+    }
     let mut sets = args
         .set
         .iter()
@@ -77,12 +80,6 @@ pub fn run(args: EvalArgs) -> Result<()> {
     sets.retain(|&s| s != EvalSet::CommonRoad || commonroad.is_none());
     let mut scenes = load_sets(&dataset, args.scenarios.as_deref(), &sets)?;
     if let Some(curvature) = args.a9_bend {
-        let max = rtr::map::MAX_BEND_CURVATURE;
-        if !(curvature.is_finite() && curvature.abs() <= max) {
-            return Err(Error::InvalidArgument(format!(
-                "--a9-bend {curvature}: expected a curvature (1/m) within +-{max}"
-            )));
-        }
         let nominal = scenes
             .iter_mut()
             .find(|s| s.set == EvalSet::Nominal)
