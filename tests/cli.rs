@@ -834,3 +834,47 @@ fn a_refused_training_run_leaves_no_folder() {
     );
     assert!(!run.exists(), "the run folder was left behind");
 }
+
+#[test]
+fn model_average_writes_a_loadable_policy_and_refuses_mixed_runs() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = dir.path().join("mean");
+    let il = "models/il_dropout80";
+    let average = |checkpoints: &[&str], out: &std::path::Path| {
+        let mut args = vec!["model", "average"];
+        for c in checkpoints {
+            args.extend(["--checkpoint", c]);
+        }
+        args.extend(["--out", out.to_str().expect("utf-8 path")]);
+        let output = rtr(&args);
+        (
+            output.status.success(),
+            String::from_utf8_lossy(&output.stderr).to_string(),
+        )
+    };
+    let (ok, err) = average(&[il, il], &out);
+    assert!(ok, "{err}");
+    // The mean of one policy twice is that policy, bit for bit (sums in f64).
+    let device = rtr::backend::Backend::NdArray
+        .device(false)
+        .expect("CPU device");
+    let mean = rtr::eval::trained::TrainedPolicy::load(&out, &device).expect("average loads");
+    assert_eq!(mean.method, "IL");
+    let read = |p: &std::path::Path| std::fs::read(p).expect("policy file");
+    assert_eq!(
+        read(&out.join("policy.bpk")),
+        read(&std::path::Path::new(il).join("policy.bpk"))
+    );
+    let sources: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("averaged.json")).expect("averaged.json"))
+            .expect("JSON");
+    assert_eq!(sources["sources"].as_array().map(Vec::len), Some(2));
+
+    let (ok, err) = average(&[il, il], &out);
+    assert!(!ok && err.contains("already holds"), "{err}");
+    let other = dir.path().join("mixed");
+    let (ok, err) = average(&[il, "models/rtr_dropout80"], &other);
+    assert!(!ok && err.contains("one run") && !other.exists(), "{err}");
+    let (ok, err) = average(&[il], &other);
+    assert!(!ok && err.contains("at least two"), "{err}");
+}

@@ -7,11 +7,13 @@
 //! - [`realism`]: the WOSAC-style score;
 //! - [`tally`]: a rollout to tallies; [`sets`], [`policy`], [`evaluate`]: scene sets, what
 //!   drives them, the evaluation;
-//! - [`trained`]: loading a run's policy; [`report`], [`plots`]: tables, JSON, figures;
+//! - [`trained`]: loading a run's policy; [`averaged`]: the weight average of checkpoints;
+//! - [`report`], [`plots`]: tables, JSON, figures;
 //! - [`study`], [`sweep`]: several policies or a lambda x alpha grid end to end;
 //! - [`curate`]: the training scenes a policy fails on (the "Curated" scenario set);
 //! - [`downstream`]: predictors trained on each policy's simulated data, scored on real data.
 
+pub mod averaged;
 pub mod bootstrap;
 pub mod collisions;
 pub mod curate;

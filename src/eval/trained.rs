@@ -17,6 +17,8 @@ pub struct TrainedPolicy {
     pub method: String,
     /// The policy file loaded.
     pub path: PathBuf,
+    /// The run's `config.toml` it was read with.
+    pub config_path: PathBuf,
     pub config: TrainConfig,
     pub network: PolicyNetwork,
     /// The simulator it was trained in (its action limits and physics terms).
@@ -69,6 +71,7 @@ impl TrainedPolicy {
         Ok(Self {
             method: config.method.name().to_string(),
             path: policy_path,
+            config_path,
             config,
             network,
             dynamics,

@@ -10,7 +10,9 @@
 //! - [`network`]: [`PolicyNetwork`] (Normal over acceleration and steering, see
 //!   [`distribution`]) and [`ValueNetwork`] (scalar per agent), same architecture, no shared
 //!   parameters;
-//! - [`network_policy`]: a policy network driving the simulator.
+//! - [`network_policy`]: a policy network driving the simulator;
+//! - [`weight_average`]: the mean of several checkpoints' parameters (stochastic weight
+//!   averaging).
 
 pub mod aggregate;
 pub mod bench;
@@ -28,6 +30,7 @@ pub mod network_policy;
 pub mod relative_motion;
 pub mod relative_pose;
 pub mod rowwise;
+pub mod weight_average;
 
 pub use config::ModelConfig;
 pub use distribution::ActionDistribution;

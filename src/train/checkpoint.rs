@@ -70,7 +70,8 @@ fn read_bytes(path: &Path) -> Result<Bytes> {
     ))
 }
 
-fn module_bytes<M: Module>(module: &M, path: &Path) -> Result<Vec<u8>> {
+/// A module's parameters as burnpack bytes (what `policy.bpk` holds); `path` names it in errors.
+pub(crate) fn module_bytes<M: Module>(module: &M, path: &Path) -> Result<Vec<u8>> {
     let bytes = module
         .clone()
         .into_record()

@@ -1,4 +1,5 @@
-//! `rtr model`: configuration and parameter counts of the policy and value networks.
+//! `rtr model`: configuration and parameter counts of the policy and value networks, and the
+//! weight average of checkpoints.
 
 use std::path::PathBuf;
 
@@ -22,14 +23,43 @@ pub enum ModelCommand {
         #[arg(long)]
         json: bool,
     },
+    /// Average the weights of several checkpoints of one run (stochastic weight averaging)
+    /// into a new policy folder that `rtr eval --checkpoint` loads.
+    Average {
+        /// A checkpoint folder (checkpoints/iter-*), run folder or policy.bpk. Repeat (two or
+        /// more).
+        #[arg(long = "checkpoint", required = true)]
+        checkpoints: Vec<PathBuf>,
+        /// The new folder: policy.bpk, the run's config.toml and averaged.json.
+        #[arg(long)]
+        out: PathBuf,
+    },
 }
 
 pub fn run(command: ModelCommand) -> Result<()> {
-    let ModelCommand::Info {
-        config,
-        small,
-        json,
-    } = command;
+    match command {
+        ModelCommand::Info {
+            config,
+            small,
+            json,
+        } => info(config, small, json),
+        ModelCommand::Average { checkpoints, out } => average(&checkpoints, &out),
+    }
+}
+
+fn average(checkpoints: &[PathBuf], out: &std::path::Path) -> Result<()> {
+    let device = Backend::NdArray.device(false)?;
+    let report = rtr::eval::averaged::write_averaged_policy(checkpoints, out, &device)?;
+    println!(
+        "{}: the mean of {} {} checkpoints",
+        out.display(),
+        report.sources.len(),
+        report.method
+    );
+    Ok(())
+}
+
+fn info(config: Option<PathBuf>, small: bool, json: bool) -> Result<()> {
     let config = match (&config, small) {
         (Some(path), _) => ModelConfig::from_toml_file(path)?,
         (None, true) => ModelConfig::small(),
