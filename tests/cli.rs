@@ -87,6 +87,33 @@ fn bad_arguments_fail_with_a_message() {
         err.contains("--a9-bend -0.05") && err.contains("0.01"),
         "{err}"
     );
+
+    let out = rtr(&[
+        "eval",
+        "--idm",
+        "--set",
+        "longtail",
+        "--generated-speed-limit",
+        "0",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("--generated-speed-limit 0") && err.contains("km/h"),
+        "{err}"
+    );
+    let out = rtr(&[
+        "eval",
+        "--idm",
+        "--set",
+        "nominal",
+        "--generated-speed-limit",
+        "100",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("add longtail or ood"),
+        "{err}"
+    );
 }
 
 #[test]

@@ -470,3 +470,35 @@ fn lane_curvature_scale_multiplies_the_curvature_feature_alone() {
         "the A9's largest curvature x 1000: {largest_curvature}"
     );
 }
+
+/// Without `lane_speed_limit_input` the speed limit reaches the network as 0 on every node,
+/// every other feature as with it (which carries the A9's 100 km/h).
+#[test]
+fn lane_speed_limit_input_off_removes_that_feature_alone() {
+    let device = device(false);
+    let batch = SceneBatch::from_scenes(&test_scenes(2), &device).expect("batch");
+    let features = |with_limit: bool| {
+        let config = ModelConfig {
+            lane_speed_limit_input: with_limit,
+            ..ModelConfig::small()
+        };
+        values(LaneInput::from_batch(&batch, &config).features)
+    };
+    let (with, without) = (features(true), features(false));
+    let width = rtr::map::LANE_NODE_FEATURES;
+    let mut limits = 0;
+    for (k, (w, o)) in with.iter().zip(&without).enumerate() {
+        if k % width == 3 {
+            assert_eq!(*o, 0.0, "node {}", k / width);
+            if (w - 100.0 / 3.6 / 30.0).abs() < 1e-5 {
+                limits += 1;
+            }
+        } else {
+            assert_eq!(w, o, "feature {} of node {}", k % width, k / width);
+        }
+    }
+    assert!(limits > 0, "no lane node carried the A9's limit");
+    assert!(ModelConfig::default().lane_speed_limit_input);
+    let text = toml::to_string(&ModelConfig::default()).expect("toml");
+    assert!(!text.contains("lane_speed_limit_input"), "{text}");
+}

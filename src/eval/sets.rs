@@ -3,11 +3,14 @@
 //! the out-of-distribution scenarios (held-out families).
 
 use std::path::Path;
+use std::sync::Arc;
 
 use serde::{Deserialize, Serialize};
 
+use crate::data::a9::LANE_NODE_LENGTH;
 use crate::data::{A9Dataset, SceneConfig, TrafficStatistics};
 use crate::error::{Error, Result};
+use crate::map::LaneGraph;
 use crate::scenario::{
     ConcreteScenario, GenerateConfig, ScenarioSet, builtin_families, generate_sets, load_families,
     load_scenario_dir,
@@ -68,6 +71,15 @@ pub struct EvalScenes {
 }
 
 impl EvalScenes {
+    /// Gives every scene's road (and lane graph) the speed limit `speed_limit` (m/s).
+    pub fn set_speed_limit(&mut self, speed_limit: f64) {
+        for scene in &mut self.scenes {
+            let map = scene.map.with_speed_limit(speed_limit);
+            scene.lane_graph = Arc::new(LaneGraph::build(&map, LANE_NODE_LENGTH));
+            scene.map = Arc::new(map);
+        }
+    }
+
     /// The A9 test split (the recording's last 20 %, never trained on).
     pub fn nominal(dataset: &A9Dataset) -> Result<Self> {
         Ok(Self::real(dataset.scenes(&SceneConfig::default())?.test))

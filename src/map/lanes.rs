@@ -136,6 +136,16 @@ pub struct Map {
 }
 
 impl Map {
+    /// The same map with every lane's speed limit set to `speed_limit` (m/s): a probe of how
+    /// much a policy reads the limit (`rtr eval --generated-speed-limit`).
+    pub fn with_speed_limit(&self, speed_limit: f64) -> Map {
+        let mut map = self.clone();
+        for lane in &mut map.lanes {
+            lane.speed_limit = speed_limit;
+        }
+        map
+    }
+
     /// Samples `od` into lanes; `source_name` names the file or generator in errors.
     pub fn from_opendrive(od: &OpenDrive, source_name: &str) -> Result<Map> {
         validate(od, source_name)?;

@@ -435,3 +435,28 @@ fn a9_road_polygon_has_the_drivable_area_and_agrees_with_point_queries() {
     }
     assert!(agreed > 100 && agreed < 400, "{agreed} points on the road");
 }
+
+#[test]
+fn with_speed_limit_changes_the_limit_alone() {
+    let map = a9();
+    let moved = map.with_speed_limit(20.0);
+    let (before, after) = (
+        super::LaneGraph::build(&map, 10.0),
+        super::LaneGraph::build(&moved, 10.0),
+    );
+    assert_eq!(before.nodes.len(), after.nodes.len());
+    for (b, a) in before.nodes.iter().zip(&after.nodes) {
+        let (mut fb, fa) = (b.features(), a.features());
+        assert_eq!(fa[3], 20.0);
+        assert!(
+            (fb[3] - 100.0 / 3.6).abs() < 1e-4,
+            "the A9 limit: {}",
+            fb[3]
+        );
+        fb[3] = 20.0;
+        assert_eq!(fa, fb);
+        assert_eq!((a.center, a.heading), (b.center, b.heading));
+    }
+    let q = [map.bounds().0[0] + 50.0, 0.0];
+    assert_eq!(moved.point_location(q), map.point_location(q));
+}

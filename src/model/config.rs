@@ -57,6 +57,20 @@ pub struct ModelConfig {
     /// from a model trained at 100: no better lane keeping, `experiments/recipe/agent_dropout/`).
     #[serde(skip_serializing_if = "is_default_curvature_scale")]
     pub lane_curvature_scale: f64,
+    /// Not in the paper: whether lane nodes carry the road's speed limit (the paper's feature;
+    /// default, so every model trained before this field loads unchanged). Every recorded road
+    /// has one limit on all its lanes (A9 100 km/h, the US-101 clips none, so 130), so the
+    /// feature names the road rather than describing a lane: a policy trained on both keys its
+    /// steering on it, and the same IL policy leaves 85 / 35 / 25 % of the long-tail agents off
+    /// the generated roads at 100 / 120 / 130 km/h (`experiments/recipe/speed_limit/`). `false`
+    /// feeds the network a 0 in its place (measured: IL then drives every generated road as
+    /// the A9 and leaves it; the option is kept for that ablation).
+    #[serde(skip_serializing_if = "is_true")]
+    pub lane_speed_limit_input: bool,
+}
+
+fn is_true(flag: &bool) -> bool {
+    *flag
 }
 
 /// [`ModelConfig::lane_curvature_scale`]'s default.
@@ -84,6 +98,7 @@ impl Default for ModelConfig {
             log_std_range: [-4.0, 1.0],
             agent_edge_motion: false,
             lane_curvature_scale: DEFAULT_LANE_CURVATURE_SCALE,
+            lane_speed_limit_input: true,
         }
     }
 }

@@ -32,6 +32,8 @@ const LANE_FEATURE_SCALE: [f32; LANE_NODE_FEATURES] = [
 
 /// Index of the curvature in [`crate::map::LaneNode::features`].
 const CURVATURE_FEATURE: usize = 2;
+/// Index of the speed limit in [`crate::map::LaneNode::features`].
+const SPEED_LIMIT_FEATURE: usize = 3;
 
 /// Speed (m/s) to network units.
 const SPEED_SCALE: f64 = 0.1;
@@ -160,6 +162,9 @@ impl LaneInput {
         let device = batch.lane_features.device();
         let mut scales = LANE_FEATURE_SCALE;
         scales[CURVATURE_FEATURE] = config.lane_curvature_scale as f32;
+        if !config.lane_speed_limit_input {
+            scales[SPEED_LIMIT_FEATURE] = 0.0;
+        }
         let scale = Tensor::<1>::from_data(
             TensorData::new(scales.to_vec(), [LANE_NODE_FEATURES]),
             &device,

@@ -41,6 +41,11 @@ pub struct EvalArgs {
     /// curvature, to see whether policies follow the lane or the A9's curve.
     #[arg(long, allow_hyphen_values = true)]
     a9_bend: Option<f64>,
+    /// Evaluate the long-tail and OOD sets with every generated road carrying this speed limit
+    /// (km/h; they are built with 120) instead: a probe of how much a policy steers by the
+    /// limit, which every recorded road holds constant (not in the paper).
+    #[arg(long)]
+    generated_speed_limit: Option<f64>,
     /// Write results.json, table.md and the figures here.
     #[arg(long)]
     out: Option<PathBuf>,
@@ -68,6 +73,14 @@ pub fn run(args: EvalArgs) -> Result<()> {
     if let Some(problem) = args.a9_bend.and_then(rtr::map::bend_curvature_problem) {
         return Err(Error::InvalidArgument(format!("--a9-bend {problem}")));
     }
+    if let Some(kmh) = args.generated_speed_limit {
+        let max = rtr::data::track::MAX_SPEED * 3.6;
+        if !(kmh > 0.0 && kmh <= max) {
+            return Err(Error::InvalidArgument(format!(
+                "--generated-speed-limit {kmh}: expected a speed limit in (0, {max}] km/h"
+            )));
+        }
+    }
     let mut sets = args
         .set
         .iter()
@@ -87,6 +100,21 @@ pub fn run(args: EvalArgs) -> Result<()> {
                 Error::InvalidArgument("--a9-bend bends the nominal set: add it to --set".into())
             })?;
         nominal.scenes = bend_scenes(&nominal.scenes, curvature)?;
+    }
+    if let Some(kmh) = args.generated_speed_limit {
+        let mut generated = 0;
+        for set in &mut scenes {
+            if matches!(set.set, EvalSet::Longtail | EvalSet::Ood) {
+                set.set_speed_limit(kmh / 3.6);
+                generated += 1;
+            }
+        }
+        if generated == 0 {
+            return Err(Error::InvalidArgument(
+                "--generated-speed-limit changes the generated roads: add longtail or ood to --set"
+                    .into(),
+            ));
+        }
     }
     let mut clip_summaries = Vec::new();
     if let Some((set, summaries)) = commonroad {
