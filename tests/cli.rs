@@ -904,4 +904,27 @@ fn model_average_writes_a_loadable_policy_and_refuses_mixed_runs() {
     assert!(!ok && err.contains("one run") && !other.exists(), "{err}");
     let (ok, err) = average(&[il], &other);
     assert!(!ok && err.contains("at least two"), "{err}");
+
+    // A run whose dynamics file sits beside its config: the averaged folder, elsewhere, still
+    // finds it.
+    let run = dir.path().join("run");
+    std::fs::create_dir(&run).expect("run folder");
+    std::fs::copy(format!("{il}/policy.bpk"), run.join("policy.bpk")).expect("policy");
+    let config = std::fs::read_to_string(format!("{il}/config.toml")).expect("config");
+    std::fs::write(
+        run.join("config.toml"),
+        format!("dynamics = \"dynamics.toml\"\n{config}"),
+    )
+    .expect("config written");
+    std::fs::write(
+        run.join("dynamics.toml"),
+        "[[terms]]\neffect = \"accel_lag\"\nparams = { tau_s = 0.8 }\n",
+    )
+    .expect("dynamics written");
+    let run = run.to_str().expect("utf-8 path");
+    let moved = dir.path().join("elsewhere").join("mean");
+    let (ok, err) = average(&[run, run], &moved);
+    assert!(ok, "{err}");
+    let loaded = rtr::eval::trained::TrainedPolicy::load(&moved, &device).expect("loads");
+    assert!(loaded.config.dynamics.is_some());
 }

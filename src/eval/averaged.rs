@@ -75,7 +75,7 @@ pub fn write_averaged_policy(
         method: first.method.clone(),
         sources,
     };
-    let config_text = crate::io::read_text(&first.config_path)?;
+    let config_text = config_for(first)?;
     let networks = policies.into_iter().map(|p| p.network).collect();
     let mean = average_parameters(networks).map_err(Error::InvalidArgument)?;
     let policy_path = out.join("policy.bpk");
@@ -87,4 +87,22 @@ pub fn write_averaged_policy(
     crate::io::atomic_write(&out.join("averaged.json"), json.as_bytes())?;
     crate::io::atomic_write(&policy_path, &bytes)?;
     Ok(report)
+}
+
+/// The first source's run config as written, except that a dynamics file named relative to
+/// its folder is named as loaded (the averaged folder lies elsewhere).
+fn config_for(policy: &TrainedPolicy) -> Result<String> {
+    let text = crate::io::read_text(&policy.config_path)?;
+    let Some(dynamics) = &policy.config.dynamics else {
+        return Ok(text);
+    };
+    let source = policy.config_path.display().to_string();
+    let mut table: toml::Table = text
+        .parse()
+        .map_err(|e| Error::invalid(&source, "config", format!("{e}")))?;
+    table.insert(
+        "dynamics".to_string(),
+        toml::Value::String(dynamics.display().to_string()),
+    );
+    toml::to_string(&table).map_err(|e| Error::invalid(&source, "config", format!("{e}")))
 }

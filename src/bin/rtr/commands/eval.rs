@@ -86,6 +86,13 @@ pub fn run(args: EvalArgs) -> Result<()> {
         .iter()
         .map(|s| EvalSet::parse(s.trim()))
         .collect::<Result<Vec<_>>>()?;
+    let generated = |s: &EvalSet| matches!(s, EvalSet::Longtail | EvalSet::Ood);
+    if args.generated_speed_limit.is_some() && !sets.iter().any(generated) {
+        return Err(Error::InvalidArgument(
+            "--generated-speed-limit changes the generated roads: add longtail or ood to --set"
+                .into(),
+        ));
+    }
     let device = args.backend.device(false)?;
     let commonroad = commonroad_set(&args.commonroad, args.commonroad_speed_limit)?;
     let entries = load_entries(&args.checkpoints, args.idm, &device)?;
@@ -102,18 +109,8 @@ pub fn run(args: EvalArgs) -> Result<()> {
         nominal.scenes = bend_scenes(&nominal.scenes, curvature)?;
     }
     if let Some(kmh) = args.generated_speed_limit {
-        let mut generated = 0;
-        for set in &mut scenes {
-            if matches!(set.set, EvalSet::Longtail | EvalSet::Ood) {
-                set.set_speed_limit(kmh / 3.6);
-                generated += 1;
-            }
-        }
-        if generated == 0 {
-            return Err(Error::InvalidArgument(
-                "--generated-speed-limit changes the generated roads: add longtail or ood to --set"
-                    .into(),
-            ));
+        for set in scenes.iter_mut().filter(|s| generated(&s.set)) {
+            set.set_speed_limit(kmh / 3.6);
         }
     }
     let mut clip_summaries = Vec::new();
