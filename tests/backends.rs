@@ -73,7 +73,7 @@ fn rollout_matches_ndarray(other: Backend) {
     }
 }
 
-/// The policy's action means on real scenes and the gradient of their sum with respect to the
+/// The policy's action means on real scenes (steering on the lane feed-forward) and the gradient of their sum with respect to the
 /// agents' poses (through the relative-pose edges and every max aggregation, whose fastest form
 /// differs by backend: `rtr::model::aggregate`).
 fn policy_output_and_pose_gradient(backend: Backend, scenes: &[&Scene]) -> (Vec<f64>, Vec<f64>) {
@@ -83,7 +83,12 @@ fn policy_output_and_pose_gradient(backend: Backend, scenes: &[&Scene]) -> (Vec<
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models/il/policy.bpk");
     let policy = load_policy(&path, &ModelConfig::small(), &device).expect("models/il loads");
     let batch = SceneBatch::from_scenes(scenes, &device).expect("batch");
-    let config = policy.config().clone();
+    // With the lane steering feed-forward (no parameters, so the same weights load), whose
+    // nearest-lane choice (argmin, gather) also has to agree.
+    let config = ModelConfig {
+        lane_steer_feedforward: true,
+        ..policy.config().clone()
+    };
     let lanes = LaneInput::from_batch(&batch, &config);
     // The current poses as a leaf, so the gradient reaches them through every edge.
     let mut frames = rtr::sim::logged_frames(&batch, batch.history_steps);

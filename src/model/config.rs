@@ -67,6 +67,13 @@ pub struct ModelConfig {
     /// the A9 and leaves it; the option is kept for that ablation).
     #[serde(skip_serializing_if = "is_true")]
     pub lane_speed_limit_input: bool,
+    /// Not in the paper: the steering mean is the network's output plus the bicycle model's
+    /// steady-state steering on the agent's lane, `atan(L k)` ([`super::steer_feedforward`]),
+    /// so the network learns the correction to lane following rather than each road's
+    /// curvature. Off by default (the paper's head; every model trained before it loads
+    /// unchanged). It adds no parameters, so any checkpoint can warm-start either way.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub lane_steer_feedforward: bool,
 }
 
 fn is_true(flag: &bool) -> bool {
@@ -99,6 +106,7 @@ impl Default for ModelConfig {
             agent_edge_motion: false,
             lane_curvature_scale: DEFAULT_LANE_CURVATURE_SCALE,
             lane_speed_limit_input: true,
+            lane_steer_feedforward: false,
         }
     }
 }
@@ -244,6 +252,7 @@ mod tests {
     fn defaults_are_the_papers_and_valid() {
         let c = ModelConfig::default();
         assert_eq!((c.hidden, c.lane_layers), (128, 4));
+        assert!(!c.lane_steer_feedforward && !c.agent_edge_motion);
         assert_eq!(c.head_hidden, vec![128, 128, 128]);
         c.validate("default").unwrap();
         ModelConfig::small().validate("small").unwrap();

@@ -8,6 +8,7 @@ use burn::tensor::{Bool, Int, TensorData};
 use super::config::ModelConfig;
 use super::interaction::InteractionEdges;
 use super::relative_pose::{relative_pose, relative_pose_features};
+use super::steer_feedforward::lane_steer_feedforward;
 use crate::map::LANE_NODE_FEATURES;
 use crate::scene::{NeighbourTensors, SceneBatch};
 use crate::sim::Frame;
@@ -56,6 +57,9 @@ pub struct AgentInput {
     pub pose: Tensor<3>,
     /// `[B, N]`: a real agent, on the road now.
     pub mask: Tensor<2, Bool>,
+    /// `[B, N]`: the steering (rad) that follows each agent's lane, added to the policy's
+    /// steering mean; `None` unless `ModelConfig::lane_steer_feedforward`.
+    pub steer_feedforward: Option<Tensor<2>>,
     /// The HeteroGNN's agent-side edges on the batch's lane graph: built here once, so the
     /// policy and the value network share them, and stored observations (PPO) keep them.
     pub edges: InteractionEdges,
@@ -111,10 +115,25 @@ impl AgentInput {
             &batch.lane_mask,
             config,
         );
+        let steer_feedforward = config.lane_steer_feedforward.then(|| {
+            lane_steer_feedforward(
+                &now.poses,
+                &batch.agent_size.clone().narrow(2, 0, 1).reshape([b, n]),
+                &batch.lane_poses,
+                &batch
+                    .lane_features
+                    .clone()
+                    .narrow(2, CURVATURE_FEATURE, 1)
+                    .squeeze_dim::<2>(2),
+                &batch.lane_mask,
+            )
+            .mask_fill(mask.clone().bool_not(), 0.0)
+        });
         Self {
             history: Tensor::cat(vec![motion, valid, size], 3),
             pose: pose_now,
             mask,
+            steer_feedforward,
             edges,
         }
     }

@@ -11,6 +11,8 @@
 //!   [`distribution`]) and [`ValueNetwork`] (scalar per agent), same architecture, no shared
 //!   parameters;
 //! - [`network_policy`]: a policy network driving the simulator;
+//! - [`steer_feedforward`]: (not in the paper) the lane's steady-state steering under the
+//!   policy's steering mean;
 //! - [`weight_average`]: the mean of several checkpoints' parameters (stochastic weight
 //!   averaging).
 
@@ -30,6 +32,7 @@ pub mod network_policy;
 pub mod relative_motion;
 pub mod relative_pose;
 pub mod rowwise;
+pub mod steer_feedforward;
 pub mod weight_average;
 
 pub use config::ModelConfig;

@@ -346,7 +346,12 @@ impl PolicyNetwork {
         .reshape([1, 1, 2]);
         let [lo, hi] = config.log_std_range;
         let absent = agents.mask.clone().bool_not().unsqueeze_dim::<3>(2);
-        let mean = (out.clone().narrow(2, 0, 2) * scale.clone()).mask_fill(absent.clone(), 0.0);
+        let mut mean = out.clone().narrow(2, 0, 2) * scale.clone();
+        if let Some(feedforward) = &agents.steer_feedforward {
+            let steer = feedforward.clone().unsqueeze_dim::<3>(2);
+            mean = mean + Tensor::cat(vec![steer.zeros_like(), steer], 2);
+        }
+        let mean = mean.mask_fill(absent.clone(), 0.0);
         // log sigma = ln(scale) + a value squashed into [lo, hi] (smooth, never saturating
         // hard, so PPO can always move it).
         let squashed = sigmoid(out.narrow(2, 2, 2))
