@@ -6,7 +6,7 @@
 //!    fine-tune of the shipped IL model (`experiments/recipe/final/demo_rtr.toml`); any run file
 //!    with `--run-file`.
 //! 4. Evaluates it, the converged models of the main comparison in `models/` (BC, IL, RL,
-//!    RL-Shaped, BC+RL, RTR; issue 18's recipe) and the IDM reference driver on the nominal
+//!    RL-Shaped, BC+RL, RTR; issue 18's recipe with the lane steering feed-forward) and the IDM reference driver on the nominal
 //!    (real A9 test split), long-tail and OOD sets.
 //! 5. Prints the paper's table and its headline (RTR against IL on long-tail collisions, with
 //!    nominal realism held) as these models measure it, and writes `results.json`, `table.md`
@@ -28,12 +28,12 @@ use rtr::train::TrainConfig;
 
 /// The main comparison's converged models (issue 18's recipe), in table order.
 const COMPARISON: [&str; 6] = [
-    "bc_recipe",
-    "il_dropout80",
-    "rl_dropout80",
-    "rl_shaped_dropout80",
-    "bc_rl_recipe",
-    "rtr_dropout80",
+    "bc_ff",
+    "il_ff",
+    "rl_ff",
+    "rl_shaped_ff",
+    "bc_rl_ff",
+    "rtr_ff",
 ];
 
 #[derive(Parser)]
@@ -44,7 +44,7 @@ struct Args {
     /// Folder for runs, scenarios, the table and the figures.
     #[arg(long, default_value = "results/demo")]
     out: PathBuf,
-    /// The run file of the training step (default: a 6-iteration RTR fine-tune of models/il_dropout80).
+    /// The run file of the training step (default: a 6-iteration RTR fine-tune of models/il_ff).
     #[arg(long)]
     run_file: Option<PathBuf>,
     /// Device backend for training and evaluation (flex in the default build).
@@ -157,7 +157,7 @@ fn run(args: Args) -> rtr::Result<()> {
             .position(|n| n.ends_with(folder))
             .map(|k| &results[k])
     };
-    if let (Some(il), Some(rtr)) = (find("models/il_dropout80"), find("models/rtr_dropout80")) {
+    if let (Some(il), Some(rtr)) = (find("models/il_ff"), find("models/rtr_ff")) {
         println!("{}", headline(il, rtr));
     }
     let written = write_study(&args.out, &entries, &results, &scenes, &device)?;
