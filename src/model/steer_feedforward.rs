@@ -13,12 +13,12 @@
 //! the bicycle model's own steady-state steering as the base controller.
 //!
 //! The lane is the one at the middle of the coming control step: the lane node closest (by
-//! centre distance) to the point [`PREVIEW_TIME_S`] ahead of the agent at its speed, whose
-//! heading is within
-//! [`MAX_HEADING_GAP_RAD`] of the agent's, so the opposite carriageway and crossing ramps are
-//! never taken; with no such node the feed-forward is 0. Choosing the node is discrete and the
-//! curvature is a map constant, so the feed-forward carries no gradient: the policy's
-//! distribution keeps its parameters' gradients exactly, only its mean is shifted.
+//! centre distance) to the point [`PREVIEW_TIME_S`] ahead of the agent at its speed, among the
+//! nodes whose heading is within [`MAX_HEADING_GAP_RAD`] of the agent's, so the opposite
+//! carriageway and crossing ramps are never taken; with no such node the feed-forward is 0.
+//! Choosing the node is discrete and the curvature is a map constant, so the feed-forward
+//! carries no gradient: the policy's distribution keeps its parameters' gradients exactly,
+//! only its mean is shifted.
 
 use burn::prelude::*;
 use burn::tensor::Bool;
@@ -38,10 +38,10 @@ pub const MAX_HEADING_GAP_RAD: f64 = std::f64::consts::FRAC_PI_4;
 const EXCLUDED: f64 = 1e9;
 
 /// `[B, N]` feed-forward steering (rad) of agents at `agent_pose` (`[B, N, 4]`: centre x,
-/// y, heading, speed) with box `length` (`[B, N]`, m) on lane nodes at `lane_pose` (`[B, L, 3]`) of
-/// curvature `lane_curvature` (`[B, L]`, 1/m, positive to the left); `lane_mask` (`[B, L]`)
-/// marks the real nodes. The wheelbase is the simulator's (`WHEELBASE_RATIO` x length, at
-/// least 1 m). Detached.
+/// y, heading, speed) with box `length` (`[B, N]`, m), on lane nodes at `lane_pose`
+/// (`[B, L, 3]`) of curvature `lane_curvature` (`[B, L]`, 1/m, positive to the left);
+/// `lane_mask` (`[B, L]`) marks the real nodes. The wheelbase is the simulator's
+/// (`WHEELBASE_RATIO` x length, at least 1 m, as in the rollout). Detached.
 pub fn lane_steer_feedforward(
     agent_pose: &Tensor<3>,
     length: &Tensor<2>,
