@@ -866,6 +866,17 @@ fn run_files_with_mistakes_are_named() {
     )
     .expect_err("no weight");
     assert!(err.to_string().contains("weight"), "{err}");
+    for rho in ["[1.0, 0.0]", "[0.5, -0.5]", "[nan, 0.0]"] {
+        let err = TrainConfig::from_toml_str(
+            &format!("method = \"RTR\"\n[ppo]\nnoise_correlation = {rho}\n"),
+            "rtr.toml",
+        )
+        .expect_err("not a correlation in [0, 1)");
+        assert!(
+            err.to_string().contains("ppo.noise_correlation") && err.to_string().contains("[0, 1)"),
+            "{err}"
+        );
+    }
 }
 
 #[test]
@@ -934,18 +945,26 @@ fn every_shipped_experiment_file_is_a_valid_run() {
     }
 }
 
-/// Before any parameter step, re-evaluating the stored observations gives the collection's own
-/// log-probabilities: every ratio is 1, so the surrogate is minus the summed advantages (the
-/// observations, edges included, are kept from the rollout, not rebuilt).
-#[test]
-fn ppo_reevaluates_the_collected_observations_exactly() {
+/// Collects PPO experience with a fresh tiny RL policy from two nominal and two long-tail
+/// initial states, `steps` steps each, with the exploration noise correlated by `rho`, once per
+/// noise seed of `seeds`.
+fn collected(
+    rho: [f64; 2],
+    steps: usize,
+    seeds: std::ops::Range<u64>,
+) -> (
+    TrainConfig,
+    rtr::model::PolicyNetwork,
+    rtr::model::ValueNetwork,
+    Vec<rtr::train::experience::Experience>,
+) {
     use burn::prelude::*;
     use rtr::model::{PolicyNetwork, ValueNetwork};
     use rtr::sim::{Dynamics, MapCaches};
     use rtr::train::experience::{CollectNetworks, RewardSettings, collect};
-    use rtr::train::ppo::{AdvantageScale, ppo_terms};
 
-    let config = tiny("RL", "alpha = 0.5", "");
+    let mut config = tiny("RL", "alpha = 0.5", "");
+    config.ppo.noise_correlation = rho;
     #[allow(deprecated)]
     let device = Device::ndarray();
     let policy = PolicyNetwork::new(&config.model, &device);
@@ -960,46 +979,139 @@ fn ppo_reevaluates_the_collected_observations_exactly() {
         })
         .collect();
     let mut caches = MapCaches::default();
-    for part in data().parts(&states) {
-        let nets = CollectNetworks {
-            policy: &policy,
-            value: &value,
-            reference: None,
-        };
-        let rewards = RewardSettings {
-            shaping: None,
-            kl_weight: None,
-        };
-        let experience = collect(
-            &part,
-            &nets,
-            &device,
-            &Dynamics::bicycle(0.5),
-            &mut caches,
-            Some(4),
-            &config.ppo,
-            &rewards,
-            7,
-        )
-        .expect("collects");
-        let terms = ppo_terms(
-            &policy,
-            &value,
-            &experience,
-            &config.ppo,
-            AdvantageScale::IDENTITY,
-            false,
-        );
-        let surrogate = terms.policy.sum.into_scalar::<f64>();
-        let advantages = (experience.advantages.clone() * experience.alive.clone().float())
-            .sum()
-            .into_scalar::<f64>();
-        assert!(terms.policy.count > 0);
-        assert!(
-            (surrogate + advantages).abs() <= 1e-5 * advantages.abs().max(1.0),
-            "surrogate {surrogate} vs -sum(A) {}",
-            -advantages
-        );
-        assert_eq!(terms.clipped, 0);
+    let nets = CollectNetworks {
+        policy: &policy,
+        value: &value,
+        reference: None,
+    };
+    let rewards = RewardSettings {
+        shaping: None,
+        kl_weight: None,
+    };
+    let parts = data().parts(&states);
+    let experience = seeds
+        .flat_map(|seed| parts.iter().map(move |part| (seed, part)))
+        .map(|(seed, part)| {
+            collect(
+                part,
+                &nets,
+                &device,
+                &Dynamics::bicycle(0.5),
+                &mut caches,
+                Some(steps),
+                &config.ppo,
+                &rewards,
+                seed,
+            )
+            .expect("collects")
+        })
+        .collect();
+    (config, policy, value, experience)
+}
+
+/// Before any parameter step, re-evaluating the stored observations gives the collection's own
+/// log-probabilities: every ratio is 1, so the surrogate is minus the summed advantages (the
+/// observations, edges included, are kept from the rollout, not rebuilt). With correlated
+/// exploration noise the same holds for the Normals conditioned on each agent's previous noise.
+#[test]
+fn ppo_reevaluates_the_collected_observations_exactly() {
+    use rtr::train::ppo::{AdvantageScale, ppo_terms};
+
+    for rho in [[0.0, 0.0], [0.9, 0.5]] {
+        let (config, policy, value, experience) = collected(rho, 4, 7..8);
+        for experience in experience {
+            let correlated = rho != [0.0, 0.0];
+            assert_eq!(
+                experience.previous_noise.len(),
+                if correlated { 4 } else { 0 }
+            );
+            let terms = ppo_terms(
+                &policy,
+                &value,
+                &experience,
+                &config.ppo,
+                AdvantageScale::IDENTITY,
+                false,
+            );
+            let surrogate = terms.policy.sum.into_scalar::<f64>();
+            let advantages = (experience.advantages.clone() * experience.alive.clone().float())
+                .sum()
+                .into_scalar::<f64>();
+            assert!(terms.policy.count > 0);
+            assert!(
+                (surrogate + advantages).abs() <= 1e-5 * advantages.abs().max(1.0),
+                "rho {rho:?}: surrogate {surrogate} vs -sum(A) {}",
+                -advantages
+            );
+            assert_eq!(terms.clipped, 0);
+        }
+    }
+}
+
+/// The sampled actions' standardised noise (a - mu) / sigma, under the policy that sampled
+/// them, has unit variance, and its correlation from one step to the next is the control's
+/// `ppo.noise_correlation`: about 0 by default, and 0.9 for acceleration and 0 for steering
+/// when asked for.
+#[test]
+fn correlated_exploration_holds_each_agents_noise_over_steps() {
+    use burn::prelude::*;
+
+    fn host(t: Tensor<3>) -> Vec<f32> {
+        t.into_data().convert::<f32>().try_into_vec().expect("f32")
+    }
+    for rho in [[0.0, 0.0], [0.9, 0.0]] {
+        let (_, policy, _, experience) = collected(rho, 10, 0..8);
+        // Per control: sum of z^2, its count, sum of z_t z_(t+1), its count.
+        let mut sums = [[0.0f64; 4]; 2];
+        for exp in &experience {
+            let lanes = policy.encode_lanes(&exp.lanes);
+            let noise: Vec<Vec<f32>> = exp
+                .observations
+                .iter()
+                .zip(&exp.actions)
+                .map(|(agents, action)| {
+                    let dist = policy.forward(agents, &exp.lanes, &lanes);
+                    host((action.clone() - dist.mean.clone()) / dist.std())
+                })
+                .collect();
+            // Every agent that acts at the first step, over all steps: the noise runs on after
+            // an agent's episode ends, and keeping only the steps it survives would keep the
+            // small noises (a large correlated one drives it off the road).
+            let [_, _, steps] = exp.alive.dims();
+            let alive: Vec<bool> = exp
+                .alive
+                .clone()
+                .into_data()
+                .try_into_vec_as()
+                .expect("bool");
+            for agent in (0..alive.len() / steps).filter(|a| alive[a * steps]) {
+                for (c, sum) in sums.iter_mut().enumerate() {
+                    let z = |t: usize| noise[t][agent * 2 + c] as f64;
+                    for t in 0..steps {
+                        sum[0] += z(t) * z(t);
+                        sum[1] += 1.0;
+                        if t + 1 < steps {
+                            sum[2] += z(t) * z(t + 1);
+                            sum[3] += 1.0;
+                        }
+                    }
+                }
+            }
+        }
+        for (c, sum) in sums.iter().enumerate() {
+            let variance = sum[0] / sum[1];
+            let correlation = sum[2] / sum[3] / variance;
+            assert!(sum[3] > 3000.0, "{} pairs", sum[3]);
+            // Eight noise seeds: at rho 0.9 an agent's ten steps are about two independent
+            // draws.
+            assert!(
+                (variance - 1.0).abs() < 0.12,
+                "rho {rho:?}, control {c}: variance {variance}"
+            );
+            assert!(
+                (correlation - rho[c]).abs() < 0.05,
+                "rho {rho:?}, control {c}: lag-1 correlation {correlation}"
+            );
+        }
     }
 }

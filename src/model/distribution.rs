@@ -5,7 +5,7 @@
 use std::f64::consts::{E, PI};
 
 use burn::prelude::*;
-use burn::tensor::Distribution;
+use burn::tensor::{Distribution, TensorData};
 
 /// A diagonal Normal over the two raw controls of every agent.
 #[derive(Debug, Clone)]
@@ -66,6 +66,28 @@ impl ActionDistribution {
             .reshape([b, n])
     }
 
+    /// This step's Normal given the agent's previous standardised exploration noise `z`
+    /// (`[B, N, 2]`) when the noise of each control is an AR(1) process with correlation
+    /// `rho` (acceleration, steering; `ppo.noise_correlation`):
+    /// `N(mu + rho sigma z, (1 - rho^2) sigma^2)`, whose samples are `mu + sigma z'` with
+    /// `z' = rho z + sqrt(1 - rho^2) eta`. With `z` read as part of the agent's state this is
+    /// still one Normal per step, so PPO's ratios and log-probabilities keep their form;
+    /// `rho = 0` is the distribution itself.
+    pub fn following(&self, previous_noise: Tensor<3>, rho: [f64; 2]) -> Self {
+        let device = self.mean.device();
+        let per_control = |v: [f64; 2]| {
+            Tensor::<3>::from_data(
+                TensorData::new(vec![v[0] as f32, v[1] as f32], [1, 1, 2]),
+                &device,
+            )
+        };
+        let keep = rho.map(|r| 0.5 * (1.0 - r * r).ln());
+        Self {
+            mean: self.mean.clone() + self.std() * previous_noise * per_control(rho),
+            log_std: self.log_std.clone() + per_control(keep),
+        }
+    }
+
     /// The same distribution cut from the autodiff graph (PPO's "old" policy).
     pub fn detach(&self) -> Self {
         Self {
@@ -78,7 +100,6 @@ impl ActionDistribution {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use burn::tensor::TensorData;
 
     fn values<const D: usize>(t: Tensor<D>) -> Vec<f32> {
         t.into_data()
@@ -121,6 +142,55 @@ mod tests {
             "sample sigma {}",
             var.sqrt()
         );
+    }
+
+    /// Stepping z' = rho z + sqrt(1 - rho^2) eta from z ~ N(0, 1) keeps z' ~ N(0, 1) with
+    /// correlation rho to z, and the conditioned Normal's density at mu + sigma z' is that of
+    /// eta, less ln sqrt(1 - rho^2) per control.
+    #[test]
+    fn following_the_previous_noise_is_an_ar1_step_of_unit_variance() {
+        #[allow(deprecated)]
+        let device = Device::ndarray();
+        let (n, rho) = (100_000, [0.8, 0.8]);
+        let normal = |seed: u64| {
+            device.seed(seed);
+            Tensor::<3>::random([1, n, 2], Distribution::Normal(0.0, 1.0), &device)
+        };
+        let dist = ActionDistribution {
+            mean: Tensor::zeros([1, n, 2], &device).add_scalar(0.5),
+            log_std: Tensor::zeros([1, n, 2], &device).add_scalar((2.0f32).ln()),
+        };
+        let (z, eta) = (normal(1), normal(2));
+        let step = dist.following(z.clone(), rho);
+        let action = step.mean.clone() + step.std() * eta.clone();
+        let next = values((action.clone() - dist.mean.clone()) / dist.std());
+        let z = values(z);
+        let moment = |f: &dyn Fn(usize) -> f64| (0..2 * n).map(f).sum::<f64>() / (2 * n) as f64;
+        let variance = moment(&|k| (next[k] as f64).powi(2));
+        let correlation = moment(&|k| next[k] as f64 * z[k] as f64);
+        assert!((variance - 1.0).abs() < 0.02, "variance {variance}");
+        assert!(
+            (correlation - rho[0]).abs() < 0.02,
+            "correlation {correlation}"
+        );
+
+        let independent = dist.log_prob(dist.mean.clone() + dist.std() * eta);
+        let shrink = 2.0 * 0.5 * (1.0 - rho[0] * rho[0]).ln();
+        let gap = values(step.log_prob(action) - independent);
+        assert!(
+            gap.iter().all(|&g| (g as f64 + shrink).abs() < 1e-4),
+            "{:?}",
+            &gap[..4]
+        );
+        // rho = 0: the distribution itself; each control follows its own rho.
+        let same = dist.following(Tensor::ones([1, n, 2], &device), [0.0, 0.0]);
+        assert_eq!(values(same.mean), values(dist.mean.clone()));
+        assert_eq!(values(same.log_std), values(dist.log_std.clone()));
+        let steering_only = values(
+            dist.following(Tensor::ones([1, n, 2], &device), [0.0, 0.6])
+                .mean,
+        );
+        assert_eq!(&steering_only[..2], &[0.5, 0.5 + 0.6 * 2.0]);
     }
 
     #[test]

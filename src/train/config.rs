@@ -208,6 +208,16 @@ pub struct PpoConfig {
     /// not taken): a warm-started policy is not pushed around by advantages measured against
     /// an untrained value. 0 (the paper, which starts from scratch): none.
     pub value_warmup_iterations: usize,
+    /// Not in the paper: per control (acceleration, steering), each agent's exploration noise
+    /// as an AR(1) process over its steps, `z_t = rho z_(t-1) + sqrt(1 - rho^2) eta_t` with
+    /// `a_t = mu(s_t) + sigma(s_t) z_t` ([`crate::model::ActionDistribution::following`]);
+    /// `[0, 0]` (the paper): independent noise per step. Each z keeps the marginal N(0, 1), so
+    /// sigma keeps its meaning, and a sampled braking is held for about `1 / (1 - rho)` steps
+    /// instead of one: one step of the logs' sigma changes a speed by 0.4 m/s, too little to
+    /// decide whether a car closing at 7 m/s meets the one ahead. PPO treats the agent's
+    /// previous noise as part of its state, so every ratio stays that of one Normal.
+    #[serde(skip_serializing_if = "is_uncorrelated")]
+    pub noise_correlation: [f64; 2],
 }
 
 impl Default for PpoConfig {
@@ -223,6 +233,7 @@ impl Default for PpoConfig {
             value_weight: 1.0,
             normalize_advantages: false,
             value_warmup_iterations: 0,
+            noise_correlation: [0.0, 0.0],
         }
     }
 }
@@ -244,6 +255,10 @@ pub struct ImitationConfig {
     /// and RTR; [`super::agent_dropout`], not in the paper); 0: every agent as recorded.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub agent_dropout: f64,
+}
+
+fn is_uncorrelated(rho: &[f64; 2]) -> bool {
+    *rho == [0.0, 0.0]
 }
 
 fn is_zero(x: &f64) -> bool {
@@ -682,6 +697,16 @@ impl TrainConfig {
         }
         if !unit(p.gamma) || !unit(p.gae_lambda) {
             return fail("ppo.gamma", "gamma and gae_lambda must lie in [0, 1]");
+        }
+        if !p
+            .noise_correlation
+            .iter()
+            .all(|r| r.is_finite() && (0.0..1.0).contains(r))
+        {
+            return fail(
+                "ppo.noise_correlation",
+                "expected per control a correlation in [0, 1) between one step's noise and the next",
+            );
         }
         if !(p.value_weight.is_finite() && p.value_weight >= 0.0) {
             return fail("ppo.value_weight", "expected a finite weight >= 0");

@@ -91,7 +91,23 @@ pub struct Experience {
     pub scene_returns: Tensor<3>,
     /// Per step, the frozen policy's distribution (KL-L).
     pub reference: Vec<ActionDistribution>,
+    /// `ppo.noise_correlation`, and per step the `[B, N, 2]` standardised noise each agent
+    /// carried into it (empty when the noise is independent): the part of the agent's state
+    /// the policy's Normal is conditioned on ([`ActionDistribution::following`]).
+    pub noise_correlation: [f64; 2],
+    pub previous_noise: Vec<Tensor<3>>,
     pub stats: CollectStats,
+}
+
+impl Experience {
+    /// The policy's distribution at step `t` as it was sampled: conditioned on the agents'
+    /// previous noise when that is correlated.
+    pub fn as_sampled(&self, t: usize, dist: ActionDistribution) -> ActionDistribution {
+        match self.previous_noise.get(t) {
+            Some(z) => dist.following(z.clone(), self.noise_correlation),
+            None => dist,
+        }
+    }
 }
 
 /// The frames of a finished rollout: the batch's logged history, then every simulated step.
@@ -145,6 +161,35 @@ impl HostNoise {
     }
 }
 
+/// Each agent's exploration noise as an AR(1) process (`ppo.noise_correlation`): the
+/// standardised noise z every agent carries from one step to the next.
+struct CorrelatedNoise {
+    /// Per control.
+    rho: [f64; 2],
+    /// Row-major `[B, N, 2]`; `None` before the first step, which draws it from N(0, 1), the
+    /// process's stationary law, so every step's noise has the same marginal.
+    carried: Option<Vec<f32>>,
+}
+
+impl CorrelatedNoise {
+    /// This step's previous noise z, and the carried noise for the next step
+    /// `rho z + sqrt(1 - rho^2) eta`.
+    fn step(&mut self, noise: &mut HostNoise, n: usize, eta: &[f32]) -> Vec<f32> {
+        let previous = self.carried.take().unwrap_or_else(|| noise.normal(n));
+        let rho = self.rho;
+        let keep = rho.map(|r| (1.0 - r * r).sqrt());
+        self.carried = Some(
+            previous
+                .iter()
+                .zip(eta)
+                .enumerate()
+                .map(|(k, (&z, &e))| (rho[k % 2] * z as f64 + keep[k % 2] * e as f64) as f32)
+                .collect(),
+        );
+        previous
+    }
+}
+
 /// The sampling policy: records what PPO needs at every step.
 struct Recorder<'n> {
     nets: &'n CollectNetworks<'n>,
@@ -153,16 +198,22 @@ struct Recorder<'n> {
     value_lanes: EncodedLanes,
     reference_lanes: Option<EncodedLanes>,
     noise: HostNoise,
+    correlated: Option<CorrelatedNoise>,
     observations: Vec<AgentInput>,
     actions: Vec<Tensor<3>>,
     log_probs: Vec<Tensor<2>>,
     values: Vec<Tensor<2>>,
-    dists: Vec<ActionDistribution>,
+    previous_noise: Vec<Tensor<3>>,
     reference: Vec<ActionDistribution>,
 }
 
 impl<'n> Recorder<'n> {
-    fn new(nets: &'n CollectNetworks<'n>, batch: &SceneBatch, noise: HostNoise) -> Self {
+    fn new(
+        nets: &'n CollectNetworks<'n>,
+        batch: &SceneBatch,
+        noise: HostNoise,
+        noise_correlation: [f64; 2],
+    ) -> Self {
         let lanes = LaneInput::from_batch(batch, nets.policy.config());
         Self {
             policy_lanes: nets.policy.encode_lanes(&lanes),
@@ -171,11 +222,15 @@ impl<'n> Recorder<'n> {
             lanes,
             nets,
             noise,
+            correlated: (noise_correlation != [0.0, 0.0]).then_some(CorrelatedNoise {
+                rho: noise_correlation,
+                carried: None,
+            }),
             observations: Vec::new(),
             actions: Vec::new(),
             log_probs: Vec::new(),
             values: Vec::new(),
-            dists: Vec::new(),
+            previous_noise: Vec::new(),
             reference: Vec::new(),
         }
     }
@@ -214,18 +269,33 @@ impl Policy for Recorder<'_> {
             .policy
             .forward(&agents, &self.lanes, &self.policy_lanes);
         let dims = dist.mean.dims();
-        let noise = Tensor::<3>::from_data(
-            TensorData::new(self.noise.normal(dims[1]), dims),
-            &dist.mean.device(),
-        );
-        let action = dist.mean.clone() + dist.std() * noise;
+        let device = dist.mean.device();
+        let eta = self.noise.normal(dims[1]);
+        // With correlated noise both the policy and the reference are conditioned on the
+        // agents' previous noise, so PPO's ratios and KL-R's log-ratios compare like with like.
+        let previous = self.correlated.as_mut().map(|c| {
+            let z = c.step(&mut self.noise, dims[1], &eta);
+            (
+                Tensor::<3>::from_data(TensorData::new(z, dims), &device),
+                c.rho,
+            )
+        });
+        let condition = |d: ActionDistribution| match &previous {
+            Some((z, rho)) => d.following(z.clone(), *rho),
+            None => d,
+        };
+        let dist = condition(dist);
+        let eta = Tensor::<3>::from_data(TensorData::new(eta, dims), &device);
+        let action = dist.mean.clone() + dist.std() * eta;
         self.log_probs.push(dist.log_prob(action.clone()));
         self.values.push(self.value_of(&agents));
         if let (Some(reference), Some(lanes)) = (self.nets.reference, &self.reference_lanes) {
             self.reference
-                .push(reference.forward(&agents, &self.lanes, lanes));
+                .push(condition(reference.forward(&agents, &self.lanes, lanes)));
         }
-        self.dists.push(dist);
+        if let Some((z, _)) = previous {
+            self.previous_noise.push(z);
+        }
         self.observations.push(agents);
         self.actions.push(action.clone());
         Controls::from_stacked(action)
@@ -278,7 +348,7 @@ pub fn collect(
         early_termination: true,
     };
     let noise = HostNoise::new(&part.scenes, &part.slots, seed);
-    let mut recorder = Recorder::new(nets, &batch, noise);
+    let mut recorder = Recorder::new(nets, &batch, noise, ppo.noise_correlation);
     let out = if part.is_nominal() {
         rollout(
             &part.scenes,
@@ -422,6 +492,8 @@ pub fn collect(
         scene_returns: float(scene_ret, b),
         actions: recorder.actions,
         reference: recorder.reference,
+        noise_correlation: ppo.noise_correlation,
+        previous_noise: recorder.previous_noise,
         lanes: recorder.lanes,
         observations: recorder.observations,
         steps,

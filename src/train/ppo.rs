@@ -114,7 +114,7 @@ pub fn ppo_terms(
     let mut kls = Vec::new();
     // One stored observation and action per simulated step.
     for (t, (agents, action)) in exp.observations.iter().zip(&exp.actions).enumerate() {
-        let dist = policy.forward(agents, lanes, &policy_lanes);
+        let dist = exp.as_sampled(t, policy.forward(agents, lanes, &policy_lanes));
         log_probs.push(dist.log_prob(action.clone()));
         values.push(value.forward(agents, lanes, &value_lanes));
         if with_kl && let Some(reference) = exp.reference.get(t) {
