@@ -6,8 +6,8 @@
 //!    fine-tune of the shipped IL model (`experiments/recipe/final/demo_rtr.toml`); any run file
 //!    with `--run-file`.
 //! 4. Evaluates it, the converged models of the main comparison in `models/` (BC, IL, RL,
-//!    RL-Shaped, BC+RL, RTR; issue 18's recipe with the lane steering feed-forward) and the IDM reference driver on the nominal
-//!    (real A9 test split), long-tail and OOD sets.
+//!    RL-Shaped, BC+RL, RTR; issue 18's recipe with the lane steering feed-forward) and the
+//!    IDM reference driver on the nominal (real A9 test split), long-tail and OOD sets.
 //! 5. Prints the paper's table and its headline (RTR against IL on long-tail collisions, with
 //!    nominal realism held) as these models measure it, and writes `results.json`, `table.md`
 //!    and the figures.
