@@ -946,10 +946,10 @@ fn every_shipped_experiment_file_is_a_valid_run() {
 }
 
 /// Collects PPO experience with a fresh tiny RL policy from two nominal and two long-tail
-/// initial states, `steps` steps each, with the exploration noise correlated by `rho`, once per
-/// noise seed of `seeds`.
+/// initial states, `steps` steps each, with the PPO settings `ppo` edits (e.g. the exploration
+/// noise's correlation), once per noise seed of `seeds`.
 fn collected(
-    rho: [f64; 2],
+    ppo: impl Fn(&mut rtr::train::config::PpoConfig),
     steps: usize,
     seeds: std::ops::Range<u64>,
 ) -> (
@@ -960,15 +960,31 @@ fn collected(
 ) {
     use burn::prelude::*;
     use rtr::model::{PolicyNetwork, ValueNetwork};
-    use rtr::sim::{Dynamics, MapCaches};
-    use rtr::train::experience::{CollectNetworks, RewardSettings, collect};
 
     let mut config = tiny("RL", "alpha = 0.5", "");
-    config.ppo.noise_correlation = rho;
+    ppo(&mut config.ppo);
     #[allow(deprecated)]
     let device = Device::ndarray();
     let policy = PolicyNetwork::new(&config.model, &device);
     let value = ValueNetwork::new(&config.model, &device);
+    let experience = collected_by(&config.ppo, &policy, &value, steps, seeds);
+    (config, policy, value, experience)
+}
+
+/// What [`collected`] collects, with given networks.
+fn collected_by(
+    ppo: &rtr::train::config::PpoConfig,
+    policy: &rtr::model::PolicyNetwork,
+    value: &rtr::model::ValueNetwork,
+    steps: usize,
+    seeds: std::ops::Range<u64>,
+) -> Vec<rtr::train::experience::Experience> {
+    use burn::prelude::*;
+    use rtr::sim::{Dynamics, MapCaches};
+    use rtr::train::experience::{CollectNetworks, RewardSettings, collect};
+
+    #[allow(deprecated)]
+    let device = Device::ndarray();
     let states: Vec<_> = (0..4)
         .map(|k| {
             if k % 2 == 0 {
@@ -980,8 +996,8 @@ fn collected(
         .collect();
     let mut caches = MapCaches::default();
     let nets = CollectNetworks {
-        policy: &policy,
-        value: &value,
+        policy,
+        value,
         reference: None,
     };
     let rewards = RewardSettings {
@@ -989,7 +1005,7 @@ fn collected(
         kl_weight: None,
     };
     let parts = data().parts(&states);
-    let experience = seeds
+    seeds
         .flat_map(|seed| parts.iter().map(move |part| (seed, part)))
         .map(|(seed, part)| {
             collect(
@@ -999,14 +1015,13 @@ fn collected(
                 &Dynamics::bicycle(0.5),
                 &mut caches,
                 Some(steps),
-                &config.ppo,
+                ppo,
                 &rewards,
                 seed,
             )
             .expect("collects")
         })
-        .collect();
-    (config, policy, value, experience)
+        .collect()
 }
 
 /// Before any parameter step, re-evaluating the stored observations gives the collection's own
@@ -1018,7 +1033,7 @@ fn ppo_reevaluates_the_collected_observations_exactly() {
     use rtr::train::ppo::{AdvantageScale, ppo_terms};
 
     for rho in [[0.0, 0.0], [0.9, 0.5]] {
-        let (config, policy, value, experience) = collected(rho, 4, 7..8);
+        let (config, policy, value, experience) = collected(|p| p.noise_correlation = rho, 4, 7..8);
         for experience in experience {
             let correlated = rho != [0.0, 0.0];
             assert_eq!(
@@ -1048,6 +1063,80 @@ fn ppo_reevaluates_the_collected_observations_exactly() {
     }
 }
 
+/// `ppo.bootstrap_exits` changes nothing of the rollout, and only the returns of agents that
+/// leave the map: by gamma^(k+1) V(s) of the state s they left from, k steps before. The
+/// scene-level returns stay the sums of the agents' (GAE lambda 1), exits included.
+#[test]
+fn exits_are_bootstrapped_only_where_agents_leave_the_map() {
+    use burn::prelude::*;
+
+    fn host(t: Tensor<3>) -> Vec<f32> {
+        t.into_data().convert::<f32>().try_into_vec().expect("f32")
+    }
+    let (mut config, policy, value, terminated) = collected(|_| {}, 10, 3..4);
+    config.ppo.bootstrap_exits = true;
+    let truncated = collected_by(&config.ppo, &policy, &value, 10, 3..4);
+    let gamma = config.ppo.gamma;
+    let mut exits = 0;
+    for (off, on) in terminated.iter().zip(&truncated) {
+        assert_eq!(
+            host(off.old_log_prob.clone()),
+            host(on.old_log_prob.clone())
+        );
+        let [b, n, steps] = on.alive.dims();
+        let alive: Vec<bool> = on
+            .alive
+            .clone()
+            .into_data()
+            .try_into_vec_as()
+            .expect("bool");
+        let (adv_off, ret_off, ret_on) = (
+            host(off.advantages.clone()),
+            host(off.returns.clone()),
+            host(on.returns.clone()),
+        );
+        for agent in 0..b * n {
+            let row = agent * steps;
+            let Some(last) = (0..steps).rev().find(|&t| alive[row + t]) else {
+                continue;
+            };
+            let value_left = (ret_off[row + last] - adv_off[row + last]) as f64;
+            let change = (ret_on[row + last] - ret_off[row + last]) as f64;
+            if change.abs() > 1e-6 {
+                exits += 1;
+                assert!(
+                    (change - gamma * value_left).abs() < 1e-4,
+                    "{change} vs {value_left}"
+                );
+            }
+            for t in 0..last {
+                let earlier = (ret_on[row + t] - ret_off[row + t]) as f64;
+                let expect = gamma.powi((last - t) as i32) * change;
+                assert!(
+                    (earlier - expect).abs() < 1e-4,
+                    "step {t}: {earlier} vs {expect}"
+                );
+            }
+        }
+        let scene_returns = host(on.scene_returns.clone());
+        for scene in 0..b {
+            for t in 0..steps {
+                let agents: f64 = (0..n)
+                    .map(|k| (scene * n + k) * steps + t)
+                    .filter(|&i| alive[i])
+                    .map(|i| ret_on[i] as f64)
+                    .sum();
+                let joint = scene_returns[scene * steps + t] as f64;
+                assert!(
+                    (joint - agents).abs() < 1e-3,
+                    "scene {scene} step {t}: {joint} vs {agents}"
+                );
+            }
+        }
+    }
+    assert!(exits > 0, "no agent left the map in 10 steps");
+}
+
 /// The sampled actions' standardised noise (a - mu) / sigma, under the policy that sampled
 /// them, has unit variance, and its correlation from one step to the next is the control's
 /// `ppo.noise_correlation`: about 0 by default, and 0.9 for acceleration and 0 for steering
@@ -1060,7 +1149,7 @@ fn correlated_exploration_holds_each_agents_noise_over_steps() {
         t.into_data().convert::<f32>().try_into_vec().expect("f32")
     }
     for rho in [[0.0, 0.0], [0.9, 0.0]] {
-        let (_, policy, _, experience) = collected(rho, 10, 0..8);
+        let (_, policy, _, experience) = collected(|p| p.noise_correlation = rho, 10, 0..8);
         // Per control: sum of z^2, its count, sum of z_t z_(t+1), its count.
         let mut sums = [[0.0f64; 4]; 2];
         for exp in &experience {

@@ -218,6 +218,13 @@ pub struct PpoConfig {
     /// previous noise as part of its state, so every ratio stays that of one Normal.
     #[serde(skip_serializing_if = "is_uncorrelated")]
     pub noise_correlation: [f64; 2],
+    /// Not in the paper: an agent that drives off the end of the map without an infraction is
+    /// a truncated episode, bootstrapped with its last value, instead of a terminated one
+    /// worth 0. Every reward is <= 0, so as a termination leaving the map is worth -V more than
+    /// staying on it, a bonus for speed near the map's end that no infraction explains.
+    /// `false` (every committed run before it): exits are terminations.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub bootstrap_exits: bool,
 }
 
 impl Default for PpoConfig {
@@ -234,6 +241,7 @@ impl Default for PpoConfig {
             normalize_advantages: false,
             value_warmup_iterations: 0,
             noise_correlation: [0.0, 0.0],
+            bootstrap_exits: false,
         }
     }
 }

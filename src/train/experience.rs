@@ -328,6 +328,24 @@ pub fn alive_steps(simulated: &[bool], ends: &[bool], agents: usize, steps: usiz
     alive
 }
 
+/// Per transition t of one agent (T entries), the value its episode is bootstrapped with when it
+/// left the map after step t without an infraction or shaping termination (`alive` `[T+1]`,
+/// `ends` `[T]`, `values` `[T+1]`): V(s_t), the last value it had, because the state after the
+/// exit no longer holds the agent. 0 elsewhere, and everywhere unless `bootstrap`.
+pub fn truncation_values(
+    alive: &[bool],
+    ends: &[bool],
+    values: &[f64],
+    bootstrap: bool,
+) -> Vec<f64> {
+    (0..ends.len())
+        .map(|t| {
+            let exited = alive[t] && !alive[t + 1] && !ends[t];
+            if bootstrap && exited { values[t] } else { 0.0 }
+        })
+        .collect()
+}
+
 /// Rolls `part` out with sampled actions and computes rewards, advantages and returns.
 #[allow(clippy::too_many_arguments)]
 pub fn collect(
@@ -424,6 +442,7 @@ pub fn collect(
     let mut scene_reward = vec![0.0; b * steps];
     let mut scene_value = vec![0.0; b * (steps + 1)];
     let mut scene_alive = vec![false; b * (steps + 1)];
+    let mut scene_truncation = vec![0.0; b * steps];
     for i in 0..agents {
         let (r, v, a) = (
             &reward[i * steps..(i + 1) * steps],
@@ -434,7 +453,13 @@ pub fn collect(
             continue;
         }
         let v64: Vec<f64> = v.iter().map(|&x| x as f64).collect();
-        let est = gae(r, &v64, a, ppo.gamma, ppo.gae_lambda);
+        let truncation = truncation_values(
+            a,
+            &ends[i * steps..(i + 1) * steps],
+            &v64,
+            ppo.bootstrap_exits,
+        );
+        let est = gae(r, &v64, a, &truncation, ppo.gamma, ppo.gae_lambda);
         let scene = i / n;
         for t in 0..steps {
             if a[t] {
@@ -443,6 +468,7 @@ pub fn collect(
                 stats.agent_steps += 1;
                 stats.reward_sum += r[t];
                 scene_reward[scene * steps + t] += r[t];
+                scene_truncation[scene * steps + t] += truncation[t];
             }
         }
         for t in 0..=steps {
@@ -462,6 +488,7 @@ pub fn collect(
             &scene_reward[s * steps..(s + 1) * steps],
             &scene_value[s * (steps + 1)..(s + 1) * (steps + 1)],
             &scene_alive[s * (steps + 1)..(s + 1) * (steps + 1)],
+            &scene_truncation[s * steps..(s + 1) * steps],
             ppo.gamma,
             ppo.gae_lambda,
         );
@@ -514,5 +541,25 @@ mod tests {
         let ends = [false, true, false, false, false, false];
         let alive = alive_steps(&simulated, &ends, 2, 3);
         assert_eq!(alive, [true, true, false, false, true, true, false, false]);
+    }
+
+    #[test]
+    fn only_an_exit_is_bootstrapped_and_only_when_asked() {
+        // T = 3. Agent 0 exits after step 1; agent 1 collides on transition 1 -> 2.
+        let values = [-0.2, -0.4, -0.6, -0.8];
+        let exit = [true, true, false, false];
+        let no_end = [false, false, false];
+        assert_eq!(
+            truncation_values(&exit, &no_end, &values, true),
+            [0.0, -0.4, 0.0]
+        );
+        assert_eq!(truncation_values(&exit, &no_end, &values, false), [0.0; 3]);
+        let crash = [false, true, false];
+        assert_eq!(truncation_values(&exit, &crash, &values, true), [0.0; 3]);
+        // Alive to the end: bootstrapped by GAE itself, not here.
+        assert_eq!(
+            truncation_values(&[true; 4], &no_end, &values, true),
+            [0.0; 3]
+        );
     }
 }
