@@ -945,6 +945,16 @@ fn every_shipped_experiment_file_is_a_valid_run() {
     }
 }
 
+/// A `[B, N, T]` tensor's values, row-major.
+fn host(t: burn::prelude::Tensor<3>) -> Vec<f32> {
+    t.into_data().convert::<f32>().try_into_vec().expect("f32")
+}
+
+/// A `[B, N, T]` mask's values, row-major.
+fn host_mask(t: burn::prelude::Tensor<3, burn::tensor::Bool>) -> Vec<bool> {
+    t.into_data().try_into_vec_as().expect("bool")
+}
+
 /// Collects PPO experience with a fresh tiny RL policy from two nominal and two long-tail
 /// initial states, `steps` steps each, with the PPO settings `ppo` edits (e.g. the exploration
 /// noise's correlation), once per noise seed of `seeds`.
@@ -1068,11 +1078,6 @@ fn ppo_reevaluates_the_collected_observations_exactly() {
 /// scene-level returns stay the sums of the agents' (GAE lambda 1), exits included.
 #[test]
 fn exits_are_bootstrapped_only_where_agents_leave_the_map() {
-    use burn::prelude::*;
-
-    fn host(t: Tensor<3>) -> Vec<f32> {
-        t.into_data().convert::<f32>().try_into_vec().expect("f32")
-    }
     let (mut config, policy, value, terminated) = collected(|_| {}, 10, 3..4);
     config.ppo.bootstrap_exits = true;
     let truncated = collected_by(&config.ppo, &policy, &value, 10, 3..4);
@@ -1084,12 +1089,7 @@ fn exits_are_bootstrapped_only_where_agents_leave_the_map() {
             host(on.old_log_prob.clone())
         );
         let [b, n, steps] = on.alive.dims();
-        let alive: Vec<bool> = on
-            .alive
-            .clone()
-            .into_data()
-            .try_into_vec_as()
-            .expect("bool");
+        let alive = host_mask(on.alive.clone());
         let (adv_off, ret_off, ret_on) = (
             host(off.advantages.clone()),
             host(off.returns.clone()),
@@ -1143,11 +1143,6 @@ fn exits_are_bootstrapped_only_where_agents_leave_the_map() {
 /// when asked for.
 #[test]
 fn correlated_exploration_holds_each_agents_noise_over_steps() {
-    use burn::prelude::*;
-
-    fn host(t: Tensor<3>) -> Vec<f32> {
-        t.into_data().convert::<f32>().try_into_vec().expect("f32")
-    }
     for rho in [[0.0, 0.0], [0.9, 0.0]] {
         let (_, policy, _, experience) = collected(|p| p.noise_correlation = rho, 10, 0..8);
         // Per control: sum of z^2, its count, sum of z_t z_(t+1), its count.
@@ -1167,12 +1162,7 @@ fn correlated_exploration_holds_each_agents_noise_over_steps() {
             // an agent's episode ends, and keeping only the steps it survives would keep the
             // small noises (a large correlated one drives it off the road).
             let [_, _, steps] = exp.alive.dims();
-            let alive: Vec<bool> = exp
-                .alive
-                .clone()
-                .into_data()
-                .try_into_vec_as()
-                .expect("bool");
+            let alive = host_mask(exp.alive.clone());
             for agent in (0..alive.len() / steps).filter(|a| alive[a * steps]) {
                 for (c, sum) in sums.iter_mut().enumerate() {
                     let z = |t: usize| noise[t][agent * 2 + c] as f64;
