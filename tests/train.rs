@@ -927,6 +927,12 @@ fn every_shipped_experiment_file_is_a_valid_run() {
             if path.is_dir() {
                 folders.push(path);
             } else if path.extension().is_some_and(|e| e == "toml") {
+                // A study's own scenario families (`rtr scenarios generate --families`).
+                if folder.components().any(|c| c.as_os_str() == "families") {
+                    rtr::scenario::LogicalScenario::from_toml_file(&path)
+                        .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+                    continue;
+                }
                 let config = TrainConfig::from_toml_file(&path)
                     .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
                 methods.push(config.method);
@@ -1135,6 +1141,100 @@ fn exits_are_bootstrapped_only_where_agents_leave_the_map() {
         }
     }
     assert!(exits > 0, "no agent left the map in 10 steps");
+}
+
+/// `ppo.at_fault_collisions` changes nothing of the rollout, and only the returns of agents
+/// struck from behind: their last transition's -1 becomes 0 plus gamma V(s) of the state they
+/// were struck from (a truncation), and every earlier return moves by that, discounted.
+#[test]
+fn collisions_struck_from_behind_cost_nothing_only_when_asked() {
+    let (mut config, policy, value, everyone) = collected(|_| {}, 10, 0..6);
+    config.ppo.at_fault_collisions = true;
+    let at_fault = collected_by(&config.ppo, &policy, &value, 10, 0..6);
+    let gamma = config.ppo.gamma;
+    let (mut waived, mut penalised) = (0, 0);
+    for (off, on) in everyone.iter().zip(&at_fault) {
+        assert_eq!(
+            host(off.old_log_prob.clone()),
+            host(on.old_log_prob.clone())
+        );
+        assert_eq!(off.stats.collided, on.stats.collided);
+        let [b, n, steps] = on.alive.dims();
+        let alive = host_mask(on.alive.clone());
+        let (adv_off, ret_off, ret_on) = (
+            host(off.advantages.clone()),
+            host(off.returns.clone()),
+            host(on.returns.clone()),
+        );
+        for agent in 0..b * n {
+            let row = agent * steps;
+            let Some(last) = (0..steps).rev().find(|&t| alive[row + t]) else {
+                continue;
+            };
+            let value_left = (ret_off[row + last] - adv_off[row + last]) as f64;
+            let change = (ret_on[row + last] - ret_off[row + last]) as f64;
+            if change.abs() > 1e-6 {
+                waived += 1;
+                assert!(
+                    (change - (1.0 + gamma * value_left)).abs() < 1e-4,
+                    "{change} vs 1 + gamma x {value_left}"
+                );
+            } else if ret_off[row + last] < -0.5 {
+                penalised += 1;
+            }
+            for t in 0..last {
+                let earlier = (ret_on[row + t] - ret_off[row + t]) as f64;
+                let expect = gamma.powi((last - t) as i32) * change;
+                assert!(
+                    (earlier - expect).abs() < 1e-4,
+                    "step {t}: {earlier} vs {expect}"
+                );
+            }
+        }
+    }
+    assert!(waived > 0, "no agent was struck from behind");
+    assert!(penalised > 0, "no infraction stayed penalised");
+}
+
+/// With `ppo.explore_steering = false` every collected steering is the policy's mean and every
+/// stored log-probability is the acceleration's density alone (the steering has no term in
+/// PPO's ratios).
+#[test]
+fn acceleration_only_exploration_steers_with_the_mean_and_scores_acceleration() {
+    use rtr::model::LaneInput;
+
+    let (_, policy, _, experience) = collected(|p| p.explore_steering = false, 4, 7..8);
+    let mut acceleration_noise = 0.0f64;
+    for exp in &experience {
+        let alive = host_mask(exp.alive.clone());
+        let old = host(exp.old_log_prob.clone());
+        let lanes = LaneInput::from_batch(&exp.batch, policy.config());
+        let encoded = policy.encode_lanes(&lanes);
+        for (t, (agents, action)) in exp.observations.iter().zip(&exp.actions).enumerate() {
+            let dist = policy.forward(agents, &lanes, &encoded);
+            let [b, n, _] = action.dims();
+            let noise = host((action.clone() - dist.mean.clone()) / dist.std());
+            let acceleration = host(
+                dist.log_prob_of(action.clone(), [true, false])
+                    .unsqueeze_dim(2),
+            );
+            for i in 0..b * n {
+                let k = i * exp.steps + t;
+                if !alive[k] {
+                    continue;
+                }
+                assert_eq!(noise[i * 2 + 1], 0.0, "agent-step {k} steered off its mean");
+                acceleration_noise += (noise[i * 2] as f64).powi(2);
+                assert!(
+                    (old[k] - acceleration[i]).abs() < 1e-4,
+                    "agent-step {k}: stored {} vs the acceleration's {}",
+                    old[k],
+                    acceleration[i]
+                );
+            }
+        }
+    }
+    assert!(acceleration_noise > 1.0, "the acceleration was not sampled");
 }
 
 /// The sampled actions' standardised noise (a - mu) / sigma, under the policy that sampled

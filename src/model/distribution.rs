@@ -27,6 +27,27 @@ impl ActionDistribution {
             .reshape([b, n])
     }
 
+    /// `[B, N]`: log density of `action` counting only the controls marked in `explored`
+    /// (acceleration, steering): the density of the explored controls when the others are
+    /// taken at their mean, as PPO sees actions sampled that way (`ppo.explore_steering`).
+    pub fn log_prob_of(&self, action: Tensor<3>, explored: [bool; 2]) -> Tensor<2> {
+        if explored == [true, true] {
+            return self.log_prob(action);
+        }
+        let [b, n, _] = action.dims();
+        let device = action.device();
+        let weight = Tensor::<3>::from_data(
+            TensorData::new(explored.map(|e| f32::from(u8::from(e))).to_vec(), [1, 1, 2]),
+            &device,
+        );
+        let z = (action - self.mean.clone()) / self.log_std.clone().exp();
+        ((z.powi_scalar(2).mul_scalar(-0.5) - self.log_std.clone())
+            .sub_scalar(0.5 * (2.0 * PI).ln())
+            * weight)
+            .sum_dim(2)
+            .reshape([b, n])
+    }
+
     /// `[B, N]`: differential entropy, summed over the two controls.
     pub fn entropy(&self) -> Tensor<2> {
         let [b, n, _] = self.mean.dims();
@@ -121,9 +142,17 @@ mod tests {
         };
         // N(1, 1) at 2 and N(-0.5, 0.1) at -0.5.
         let at = Tensor::from_data(TensorData::new(vec![2.0f32, -0.5], [1, 1, 2]), &device);
-        let expect = (-0.5 - 0.5 * (2.0 * PI).ln()) + (-(0.1f64).ln() - 0.5 * (2.0 * PI).ln());
-        let got = values(dist.log_prob(at))[0] as f64;
+        let acceleration = -0.5 - 0.5 * (2.0 * PI).ln();
+        let expect = acceleration + (-(0.1f64).ln() - 0.5 * (2.0 * PI).ln());
+        let got = values(dist.log_prob(at.clone()))[0] as f64;
         assert!((got - expect).abs() < 1e-5, "{got} vs {expect}");
+        let both = values(dist.log_prob_of(at.clone(), [true, true]))[0] as f64;
+        assert!((both - expect).abs() < 1e-5, "{both} vs {expect}");
+        let first = values(dist.log_prob_of(at, [true, false]))[0] as f64;
+        assert!(
+            (first - acceleration).abs() < 1e-5,
+            "{first} vs {acceleration}"
+        );
         let entropy = values(dist.entropy())[0] as f64;
         let expect = (2.0 * PI * E).ln() + (0.1f64).ln();
         assert!((entropy - expect).abs() < 1e-5, "{entropy} vs {expect}");

@@ -89,6 +89,20 @@ pub struct StepInfractions {
     pub offroad: Vec<bool>,
     /// The box centre has passed an open road end: the agent has left the map.
     pub exited: Vec<bool>,
+    /// Collided, and only with boxes in its rear quarter: struck from behind, not at fault
+    /// (nuPlan's rule for at-fault collisions counts a rear collision against the striker).
+    pub struck_from_behind: Vec<bool>,
+}
+
+/// `other`'s centre lies in `own`'s rear quarter: behind it, less to the side than behind.
+fn in_rear_quarter(own: &OrientedBox, other: &OrientedBox) -> bool {
+    let (dx, dy) = (
+        other.center[0] - own.center[0],
+        other.center[1] - own.center[1],
+    );
+    let (cos, sin) = (own.heading.cos(), own.heading.sin());
+    let (ahead, side) = (dx * cos + dy * sin, -dx * sin + dy * cos);
+    ahead < 0.0 && side.abs() < -ahead
 }
 
 /// Checks every present box against its scene's map and every other present box.
@@ -99,6 +113,7 @@ pub fn check_step(boxes: &StepBoxes, maps: &[MapCache]) -> StepInfractions {
         collision: vec![false; total],
         offroad: vec![false; total],
         exited: vec![false; total],
+        struck_from_behind: vec![false; total],
     };
     let footprint = |i: usize| {
         OrientedBox::new(
@@ -112,39 +127,49 @@ pub fn check_step(boxes: &StepBoxes, maps: &[MapCache]) -> StepInfractions {
         .par_chunks_mut(n)
         .zip(out.offroad.par_chunks_mut(n))
         .zip(out.exited.par_chunks_mut(n))
+        .zip(out.struck_from_behind.par_chunks_mut(n))
         .enumerate()
-        .for_each(|(b, ((collision, offroad), exited))| {
-            let cache = &maps[b];
-            let scene: Vec<(usize, OrientedBox)> = (0..n)
-                .filter(|&a| boxes.present[b * n + a])
-                .map(|a| (a, footprint(b * n + a)))
-                .collect();
-            for &(a, fp) in &scene {
-                if cache.raster.point_location(&cache.map, fp.center)
-                    == PointLocation::BeyondRoadEnd
-                {
-                    exited[a] = true;
-                } else {
-                    offroad[a] = cache.raster.box_on_road(&cache.map, &fp) == BoxOnRoad::OffRoad;
+        .for_each(
+            |(b, (((collision, offroad), exited), struck_from_behind))| {
+                let cache = &maps[b];
+                let scene: Vec<(usize, OrientedBox)> = (0..n)
+                    .filter(|&a| boxes.present[b * n + a])
+                    .map(|a| (a, footprint(b * n + a)))
+                    .collect();
+                for &(a, fp) in &scene {
+                    if cache.raster.point_location(&cache.map, fp.center)
+                        == PointLocation::BeyondRoadEnd
+                    {
+                        exited[a] = true;
+                    } else {
+                        offroad[a] =
+                            cache.raster.box_on_road(&cache.map, &fp) == BoxOnRoad::OffRoad;
+                    }
                 }
-            }
-            for (i, &(a, fa)) in scene.iter().enumerate() {
-                if exited[a] {
-                    continue;
-                }
-                for &(c, fc) in &scene[i + 1..] {
-                    if exited[c] {
+                let mut at_fault = vec![false; n];
+                for (i, &(a, fa)) in scene.iter().enumerate() {
+                    if exited[a] {
                         continue;
                     }
-                    let reach = fa.bounding_radius() + fc.bounding_radius();
-                    let (dx, dy) = (fa.center[0] - fc.center[0], fa.center[1] - fc.center[1]);
-                    if dx * dx + dy * dy < reach * reach && fa.overlaps(&fc) {
-                        collision[a] = true;
-                        collision[c] = true;
+                    for &(c, fc) in &scene[i + 1..] {
+                        if exited[c] {
+                            continue;
+                        }
+                        let reach = fa.bounding_radius() + fc.bounding_radius();
+                        let (dx, dy) = (fa.center[0] - fc.center[0], fa.center[1] - fc.center[1]);
+                        if dx * dx + dy * dy < reach * reach && fa.overlaps(&fc) {
+                            collision[a] = true;
+                            collision[c] = true;
+                            at_fault[a] |= !in_rear_quarter(&fa, &fc);
+                            at_fault[c] |= !in_rear_quarter(&fc, &fa);
+                        }
                     }
                 }
-            }
-        });
+                for a in 0..n {
+                    struck_from_behind[a] = collision[a] && !at_fault[a];
+                }
+            },
+        );
     out
 }
 
@@ -177,6 +202,39 @@ mod tests {
         let map1 = caches.get(&maps[1]);
         assert!(Arc::ptr_eq(&map1.map, &maps[1]));
         assert_eq!(caches.len(), MAX_CACHED_MAPS);
+    }
+
+    /// A rear-end blames the striker only; cars side by side and head-on both are at fault.
+    #[test]
+    fn only_a_car_struck_from_behind_is_not_at_fault() {
+        let od = ProceduralMap::preset("straight")
+            .and_then(|p| p.build())
+            .expect("map");
+        let map = Arc::new(Map::from_opendrive(&od, "straight").expect("map"));
+        let mut caches = MapCaches::default();
+        let maps = vec![caches.get(&map); 3];
+        // Scene 0: a follower's nose 0.5 m into a leader's tail (slightly offset sideways).
+        // Scene 1: two cars side by side, 1.5 m apart centre to centre. Scene 2: head-on.
+        let cx = [150.0, 154.1, 150.0, 150.5, 150.0, 154.0];
+        let cy = [-5.0, -4.6, -5.0, -3.5, -5.0, -5.0];
+        let heading = [0.0, 0.05, 0.0, 0.0, 0.0, std::f32::consts::PI];
+        let flags = check_step(
+            &StepBoxes {
+                agents: 2,
+                cx: &cx,
+                cy: &cy,
+                heading: &heading,
+                length: &[4.6; 6],
+                width: &[1.9; 6],
+                present: &[true; 6],
+            },
+            &maps,
+        );
+        assert_eq!(flags.collision, [true; 6]);
+        assert_eq!(
+            flags.struck_from_behind,
+            [false, true, false, false, false, false]
+        );
     }
 
     #[test]

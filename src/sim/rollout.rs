@@ -114,6 +114,9 @@ pub struct Rollout {
     /// only (a hero's infraction ends its run but is not the policy's).
     pub collision: Tensor<3, Bool>,
     pub offroad: Tensor<3, Bool>,
+    /// `[B, N, T]`: the collisions of `collision` in which the agent was struck from behind
+    /// ([`crate::sim::infractions::StepInfractions::struck_from_behind`]).
+    pub struck_from_behind: Tensor<3, Bool>,
     /// `[B, N, T]`: -1 on an infraction, else 0.
     pub rewards: Tensor<3>,
     /// `[B, N, T + 1]`: raw controls applied at each step (last entry repeats).
@@ -262,6 +265,7 @@ pub fn rollout_from(
     let mut present_hist = vec![present.clone()];
     let mut simulated_hist = vec![alive.clone()];
     let (mut collision_hist, mut offroad_hist) = (Vec::new(), Vec::new());
+    let mut struck_hist = Vec::new();
     let mut actions = Vec::new();
 
     for k in 0..steps {
@@ -324,6 +328,7 @@ pub fn rollout_from(
         );
         let mut collision = vec![false; b * n];
         let mut offroad = vec![false; b * n];
+        let mut struck = vec![false; b * n];
         for i in 0..b * n {
             if !alive[i] {
                 continue;
@@ -335,6 +340,7 @@ pub fn rollout_from(
             }
             collision[i] = flags.collision[i] && controlled[i];
             offroad[i] = flags.offroad[i] && controlled[i];
+            struck[i] = flags.struck_from_behind[i] && controlled[i];
             if config.early_termination && (flags.collision[i] || flags.offroad[i]) {
                 // Present at the infraction step, removed from the next one.
                 alive[i] = false;
@@ -349,6 +355,7 @@ pub fn rollout_from(
         simulated_hist.push((0..b * n).map(|i| controlled[i] && present[i]).collect());
         collision_hist.push(collision);
         offroad_hist.push(offroad);
+        struck_hist.push(struck);
     }
     if let Some(last) = actions.last().cloned() {
         actions.push(last);
@@ -376,6 +383,7 @@ pub fn rollout_from(
         simulated: stack_time(simulated_hist),
         collision,
         offroad,
+        struck_from_behind: stack_time(struck_hist),
         rewards,
         actions: Tensor::stack(actions, 2),
         steps,

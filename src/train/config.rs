@@ -225,6 +225,34 @@ pub struct PpoConfig {
     /// `false` (every committed run before it): exits are terminations.
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub bootstrap_exits: bool,
+    /// Not in the paper: a collision costs only the agents at fault. An agent struck from
+    /// behind ([`crate::sim::infractions::StepInfractions::struck_from_behind`], nuPlan's rule)
+    /// gets no penalty, and its episode, ended by the other's mistake, is a truncation
+    /// bootstrapped with its last value. Measured (`experiments/recipe/ppo_credit/`), it takes
+    /// away the paper's push on a car closed on from behind to pull away and adds a general
+    /// slowing: slowing down is free when the car behind takes the blame. `false` (the paper):
+    /// both cars of a collision get -1.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub at_fault_collisions: bool,
+    /// `false` (not in the paper): PPO explores acceleration only. Its rollouts steer with the
+    /// policy's mean and its ratios count the acceleration's density alone, so the steering
+    /// is learned by the imitation term (RTR, BC+RL) or kept from the warm start (RL). At the
+    /// logs' sigma the steering noise puts about half of the long-tail training agents off the
+    /// road and buries the credit for braking (`examples/ppo_signal.rs`,
+    /// `experiments/recipe/ppo_credit/`). `true` (the paper): both controls are sampled.
+    #[serde(skip_serializing_if = "is_true")]
+    pub explore_steering: bool,
+}
+
+fn is_true(b: &bool) -> bool {
+    *b
+}
+
+impl PpoConfig {
+    /// Which controls PPO samples and scores: (acceleration, steering).
+    pub fn explored_controls(&self) -> [bool; 2] {
+        [true, self.explore_steering]
+    }
 }
 
 impl Default for PpoConfig {
@@ -242,6 +270,8 @@ impl Default for PpoConfig {
             value_warmup_iterations: 0,
             noise_correlation: [0.0, 0.0],
             bootstrap_exits: false,
+            at_fault_collisions: false,
+            explore_steering: true,
         }
     }
 }
@@ -714,6 +744,13 @@ impl TrainConfig {
             return fail(
                 "ppo.noise_correlation",
                 "expected per control a correlation in [0, 1) between one step's noise and the next",
+            );
+        }
+        if !p.explore_steering && p.noise_correlation[1] != 0.0 {
+            return fail(
+                "ppo.noise_correlation",
+                "a steering correlation needs steering noise: with explore_steering = false set \
+                 it to 0",
             );
         }
         if !(p.value_weight.is_finite() && p.value_weight >= 0.0) {

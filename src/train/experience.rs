@@ -96,6 +96,9 @@ pub struct Experience {
     /// the policy's Normal is conditioned on ([`ActionDistribution::following`]).
     pub noise_correlation: [f64; 2],
     pub previous_noise: Vec<Tensor<3>>,
+    /// `ppo.explored_controls()`: the controls sampled (the others follow the mean) and
+    /// counted in `old_log_prob`.
+    pub explored: [bool; 2],
     pub stats: CollectStats,
 }
 
@@ -199,6 +202,8 @@ struct Recorder<'n> {
     reference_lanes: Option<EncodedLanes>,
     noise: HostNoise,
     correlated: Option<CorrelatedNoise>,
+    /// Sampled controls; the others take the mean and leave the log-probabilities.
+    explored: [bool; 2],
     observations: Vec<AgentInput>,
     actions: Vec<Tensor<3>>,
     log_probs: Vec<Tensor<2>>,
@@ -212,8 +217,9 @@ impl<'n> Recorder<'n> {
         nets: &'n CollectNetworks<'n>,
         batch: &SceneBatch,
         noise: HostNoise,
-        noise_correlation: [f64; 2],
+        ppo: &PpoConfig,
     ) -> Self {
+        let noise_correlation = ppo.noise_correlation;
         let lanes = LaneInput::from_batch(batch, nets.policy.config());
         Self {
             policy_lanes: nets.policy.encode_lanes(&lanes),
@@ -226,6 +232,7 @@ impl<'n> Recorder<'n> {
                 rho: noise_correlation,
                 carried: None,
             }),
+            explored: ppo.explored_controls(),
             observations: Vec::new(),
             actions: Vec::new(),
             log_probs: Vec::new(),
@@ -249,7 +256,7 @@ impl<'n> Recorder<'n> {
             .zip(&self.reference)
             .zip(&self.actions)
             .map(|((log_prob, reference), action)| {
-                log_prob.clone() - reference.log_prob(action.clone())
+                log_prob.clone() - reference.log_prob_of(action.clone(), self.explored)
             })
             .collect()
     }
@@ -270,7 +277,12 @@ impl Policy for Recorder<'_> {
             .forward(&agents, &self.lanes, &self.policy_lanes);
         let dims = dist.mean.dims();
         let device = dist.mean.device();
-        let eta = self.noise.normal(dims[1]);
+        let mut eta = self.noise.normal(dims[1]);
+        for (k, e) in eta.iter_mut().enumerate() {
+            if !self.explored[k % 2] {
+                *e = 0.0;
+            }
+        }
         // With correlated noise both the policy and the reference are conditioned on the
         // agents' previous noise, so PPO's ratios and KL-R's log-ratios compare like with like.
         let previous = self.correlated.as_mut().map(|c| {
@@ -287,7 +299,8 @@ impl Policy for Recorder<'_> {
         let dist = condition(dist);
         let eta = Tensor::<3>::from_data(TensorData::new(eta, dims), &device);
         let action = dist.mean.clone() + dist.std() * eta;
-        self.log_probs.push(dist.log_prob(action.clone()));
+        self.log_probs
+            .push(dist.log_prob_of(action.clone(), self.explored));
         self.values.push(self.value_of(&agents));
         if let (Some(reference), Some(lanes)) = (self.nets.reference, &self.reference_lanes) {
             self.reference
@@ -328,21 +341,42 @@ pub fn alive_steps(simulated: &[bool], ends: &[bool], agents: usize, steps: usiz
     alive
 }
 
-/// Per transition t of one agent (T entries), the value its episode is bootstrapped with when it
-/// left the map after step t without an infraction or shaping termination (`alive` `[T+1]`,
-/// `ends` `[T]`, `values` `[T+1]`): V(s_t), the last value it had, because the state after the
-/// exit no longer holds the agent. 0 elsewhere, and everywhere unless `bootstrap`.
+/// Per transition t of one agent (T entries), the value its episode is bootstrapped with when
+/// the episode was cut by something it did not do (`alive` `[T+1]`, `ends` `[T]`, `values`
+/// `[T+1]`): V(s_t), the last value it had, because the state after no longer holds the agent.
+/// - With `bootstrap_exits`: it left the map after step t without an infraction or shaping
+///   termination.
+/// - `struck[t]`: it was struck from behind on that transition and not penalised for it
+///   (`ppo.at_fault_collisions`).
+///
+/// 0 elsewhere.
 pub fn truncation_values(
     alive: &[bool],
     ends: &[bool],
+    struck: &[bool],
     values: &[f64],
-    bootstrap: bool,
+    bootstrap_exits: bool,
 ) -> Vec<f64> {
     (0..ends.len())
         .map(|t| {
-            let exited = alive[t] && !alive[t + 1] && !ends[t];
-            if bootstrap && exited { values[t] } else { 0.0 }
+            let exited = bootstrap_exits && alive[t] && !alive[t + 1] && !ends[t];
+            if exited || (alive[t] && struck[t]) {
+                values[t]
+            } else {
+                0.0
+            }
         })
+        .collect()
+}
+
+/// Per agent-transition, `[B*N][T]`: struck from behind and not otherwise in fault (not also
+/// off the road), so `ppo.at_fault_collisions` waives its collision penalty. All false unless
+/// `at_fault_collisions`.
+fn waived_collisions(struck: &[bool], offroad: &[bool], at_fault_collisions: bool) -> Vec<bool> {
+    struck
+        .iter()
+        .zip(offroad)
+        .map(|(&s, &o)| at_fault_collisions && s && !o)
         .collect()
 }
 
@@ -366,7 +400,7 @@ pub fn collect(
         early_termination: true,
     };
     let noise = HostNoise::new(&part.scenes, &part.slots, seed);
-    let mut recorder = Recorder::new(nets, &batch, noise, ppo.noise_correlation);
+    let mut recorder = Recorder::new(nets, &batch, noise, ppo);
     let out = if part.is_nominal() {
         rollout(
             &part.scenes,
@@ -395,6 +429,11 @@ pub fn collect(
     let infraction = host_bool(out.collision.clone().bool_or(out.offroad.clone()));
     let collision = host_bool(out.collision.clone());
     let offroad = host_bool(out.offroad.clone());
+    let waived = waived_collisions(
+        &host_bool(out.struck_from_behind.clone()),
+        &offroad,
+        ppo.at_fault_collisions,
+    );
     let base_reward = host_f32(out.rewards.clone());
     // Row-major [B*N][T(+1)] host copies of the per-step tensors.
     let per_step = |v: &[Tensor<2>]| -> Vec<f32> {
@@ -410,7 +449,12 @@ pub fn collect(
     };
     let values = per_step(&recorder.values);
 
-    let mut reward: Vec<f64> = base_reward.iter().map(|&r| r as f64).collect();
+    // A waived collision still ends the episode (the car is gone), as a truncation.
+    let mut reward: Vec<f64> = base_reward
+        .iter()
+        .zip(&waived)
+        .map(|(&r, &w)| if w { 0.0 } else { r as f64 })
+        .collect();
     let mut ends = infraction.clone();
     if let Some(shaping) = &rewards.shaping {
         let speeds = host_f32(out.poses.clone().narrow(3, 3, 1).reshape([b, n, steps + 1]));
@@ -456,6 +500,7 @@ pub fn collect(
         let truncation = truncation_values(
             a,
             &ends[i * steps..(i + 1) * steps],
+            &waived[i * steps..(i + 1) * steps],
             &v64,
             ppo.bootstrap_exits,
         );
@@ -521,6 +566,7 @@ pub fn collect(
         reference: recorder.reference,
         noise_correlation: ppo.noise_correlation,
         previous_noise: recorder.previous_noise,
+        explored: recorder.explored,
         lanes: recorder.lanes,
         observations: recorder.observations,
         steps,
@@ -549,17 +595,41 @@ mod tests {
         let values = [-0.2, -0.4, -0.6, -0.8];
         let exit = [true, true, false, false];
         let no_end = [false, false, false];
+        let none = [false; 3];
         assert_eq!(
-            truncation_values(&exit, &no_end, &values, true),
+            truncation_values(&exit, &no_end, &none, &values, true),
             [0.0, -0.4, 0.0]
         );
-        assert_eq!(truncation_values(&exit, &no_end, &values, false), [0.0; 3]);
-        let crash = [false, true, false];
-        assert_eq!(truncation_values(&exit, &crash, &values, true), [0.0; 3]);
-        // Alive to the end: bootstrapped by GAE itself, not here.
         assert_eq!(
-            truncation_values(&[true; 4], &no_end, &values, true),
+            truncation_values(&exit, &no_end, &none, &values, false),
             [0.0; 3]
         );
+        let crash = [false, true, false];
+        assert_eq!(
+            truncation_values(&exit, &crash, &none, &values, true),
+            [0.0; 3]
+        );
+        // Alive to the end: bootstrapped by GAE itself, not here.
+        assert_eq!(
+            truncation_values(&[true; 4], &no_end, &none, &values, true),
+            [0.0; 3]
+        );
+        // Struck from behind on transition 1 -> 2 (an infraction that ends it, not its own).
+        let crashed = [true, true, false, false];
+        assert_eq!(
+            truncation_values(&crashed, &crash, &crash, &values, false),
+            [0.0, -0.4, 0.0]
+        );
+    }
+
+    #[test]
+    fn only_a_rear_struck_collision_on_the_road_is_waived_and_only_when_asked() {
+        let struck = [true, true, false];
+        let offroad = [false, true, false];
+        assert_eq!(
+            waived_collisions(&struck, &offroad, true),
+            [true, false, false]
+        );
+        assert_eq!(waived_collisions(&struck, &offroad, false), [false; 3]);
     }
 }

@@ -115,7 +115,7 @@ pub fn ppo_terms(
     // One stored observation and action per simulated step.
     for (t, (agents, action)) in exp.observations.iter().zip(&exp.actions).enumerate() {
         let dist = exp.as_sampled(t, policy.forward(agents, lanes, &policy_lanes));
-        log_probs.push(dist.log_prob(action.clone()));
+        log_probs.push(dist.log_prob_of(action.clone(), exp.explored));
         values.push(value.forward(agents, lanes, &value_lanes));
         if with_kl && let Some(reference) = exp.reference.get(t) {
             kls.push(dist.kl(reference));
