@@ -82,6 +82,40 @@ fn scripted_agents_take_the_script_and_others_the_policy() {
     assert!((speed(1, 4) - 20.0).abs() < 1e-4);
 }
 
+/// A scripted hero is driven through the dynamics but is never one of the policy's simulated
+/// agents, from the first step on (PPO takes its samples and counts its agents where
+/// `simulated` holds).
+#[test]
+fn heroes_are_never_simulated_policy_agents() {
+    let y = -1.875;
+    let mut scene = straight_scene(&[(100.0, y, 0.0, 20.0), (200.0, y, 0.0, 20.0)], 4);
+    scene.agents[1].role = AgentRole::Hero;
+    let batch = SceneBatch::from_scenes(&[&scene], &cpu()).expect("batch");
+    let mut script = coast;
+    let mut policy = coast;
+    let mut mixed = Scripted {
+        policy: &mut policy,
+        script: &mut script,
+        mask: batch.agent_hero.clone(),
+    };
+    let out = rollout(
+        &[&scene],
+        &batch,
+        &Dynamics::bicycle(0.5),
+        &mut mixed,
+        &mut MapCaches::default(),
+        &RolloutConfig::default(),
+    )
+    .expect("rollout");
+    let simulated = flags(&out.simulated);
+    let steps = simulated.len() / 2;
+    assert!(simulated[..steps].iter().all(|&s| s), "{simulated:?}");
+    assert!(simulated[steps..].iter().all(|&s| !s), "{simulated:?}");
+    // The hero still moved: driven by its script through the dynamics.
+    let poses = values(out.poses.reshape([1, 2, 4 * (steps)]));
+    assert!(poses[4 * steps + 4 * (steps - 1)] > 200.0 + 20.0 * 0.5 * (steps - 2) as f64);
+}
+
 /// A one-way straight road (2 lanes of 3.75 m, 400 m) and a scene of hand-placed agents with
 /// one history step and `future` steps, each agent constant-speed in the log.
 fn straight_scene(agents: &[(f64, f64, f64, f64)], future: usize) -> Scene {

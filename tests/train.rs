@@ -995,12 +995,6 @@ fn collected_by(
     steps: usize,
     seeds: std::ops::Range<u64>,
 ) -> Vec<rtr::train::experience::Experience> {
-    use burn::prelude::*;
-    use rtr::sim::{Dynamics, MapCaches};
-    use rtr::train::experience::{CollectNetworks, RewardSettings, collect};
-
-    #[allow(deprecated)]
-    let device = Device::ndarray();
     let states: Vec<_> = (0..4)
         .map(|k| {
             if k % 2 == 0 {
@@ -1010,6 +1004,25 @@ fn collected_by(
             }
         })
         .collect();
+    collected_from(data(), &states, ppo, policy, value, steps, seeds)
+}
+
+/// What [`collected_by`] collects, from `states` of `data`.
+fn collected_from(
+    data: &TrainingData,
+    states: &[rtr::train::InitialState],
+    ppo: &rtr::train::config::PpoConfig,
+    policy: &rtr::model::PolicyNetwork,
+    value: &rtr::model::ValueNetwork,
+    steps: usize,
+    seeds: std::ops::Range<u64>,
+) -> Vec<rtr::train::experience::Experience> {
+    use burn::prelude::*;
+    use rtr::sim::{Dynamics, MapCaches};
+    use rtr::train::experience::{CollectNetworks, RewardSettings, collect};
+
+    #[allow(deprecated)]
+    let device = Device::ndarray();
     let mut caches = MapCaches::default();
     let nets = CollectNetworks {
         policy,
@@ -1020,7 +1033,7 @@ fn collected_by(
         shaping: None,
         kl_weight: None,
     };
-    let parts = data().parts(&states);
+    let parts = data.parts(states);
     seeds
         .flat_map(|seed| parts.iter().map(move |part| (seed, part)))
         .map(|(seed, part)| {
@@ -1084,9 +1097,21 @@ fn ppo_reevaluates_the_collected_observations_exactly() {
 /// scene-level returns stay the sums of the agents' (GAE lambda 1), exits included.
 #[test]
 fn exits_are_bootstrapped_only_where_agents_leave_the_map() {
-    let (mut config, policy, value, terminated) = collected(|_| {}, 10, 3..4);
+    // Recorded scenes, where cars near the end of the recorded road leave it within seconds.
+    let recorded = TrainingData::load(
+        common::a9(),
+        &DataConfig {
+            nominal_limit: Some(24),
+            ..DataConfig::default()
+        },
+        false,
+    )
+    .expect("training data");
+    let states: Vec<_> = (0..24).map(rtr::train::InitialState::Nominal).collect();
+    let (mut config, policy, value, _) = collected(|_| {}, 1, 0..1);
+    let terminated = collected_from(&recorded, &states, &config.ppo, &policy, &value, 10, 3..4);
     config.ppo.bootstrap_exits = true;
-    let truncated = collected_by(&config.ppo, &policy, &value, 10, 3..4);
+    let truncated = collected_from(&recorded, &states, &config.ppo, &policy, &value, 10, 3..4);
     let gamma = config.ppo.gamma;
     let mut exits = 0;
     for (off, on) in terminated.iter().zip(&truncated) {

@@ -263,7 +263,14 @@ pub fn rollout_from(
 
     let mut poses = vec![pose_of(&state)];
     let mut present_hist = vec![present.clone()];
-    let mut simulated_hist = vec![alive.clone()];
+    // The policy's agents only: a scripted hero is driven, never the policy's.
+    let mut simulated_hist = vec![
+        alive
+            .iter()
+            .zip(&controlled)
+            .map(|(a, c)| *a && *c)
+            .collect::<Vec<bool>>(),
+    ];
     let (mut collision_hist, mut offroad_hist) = (Vec::new(), Vec::new());
     let mut struck_hist = Vec::new();
     let mut actions = Vec::new();
