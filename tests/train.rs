@@ -371,6 +371,7 @@ fn a_reference_with_sigma_from_the_logs_starts_at_zero_kl() {
             std_from_logs: true,
             std_scale: [1.0, 1.0],
             add_agent_edge_motion: false,
+            agent_edge_motion_scale: 1.0,
         });
         config.ppo.value_warmup_iterations = 0;
         let rows = train(config, &dir.path().join(out), false, Some(1));
@@ -590,6 +591,7 @@ fn a_warm_started_run_begins_from_its_initial_policy_and_warms_up_the_value() {
             std_from_logs: false,
             std_scale: [1.0, 1.0],
             add_agent_edge_motion: false,
+            agent_edge_motion_scale: 1.0,
         });
         config.ppo.value_warmup_iterations = warmup;
         config.optimizer.epochs = 2;
@@ -627,6 +629,7 @@ fn a_warm_started_run_begins_from_its_initial_policy_and_warms_up_the_value() {
         std_from_logs: true,
         std_scale: [1.0, 0.5],
         add_agent_edge_motion: false,
+        agent_edge_motion_scale: 1.0,
     });
     config.ppo.value_warmup_iterations = 2;
     config.optimizer.epochs = 2;
@@ -673,6 +676,7 @@ fn a_warm_started_run_begins_from_its_initial_policy_and_warms_up_the_value() {
         std_from_logs: false,
         std_scale: [1.0, 1.0],
         add_agent_edge_motion: false,
+        agent_edge_motion_scale: 1.0,
     });
     let workers = devices(&missing).expect("devices");
     let err = Trainer::new(missing, data(), workers, &dir.path().join("x"), false)
@@ -687,6 +691,7 @@ fn a_warm_started_run_begins_from_its_initial_policy_and_warms_up_the_value() {
         std_from_logs: true,
         std_scale: [1.0, 1e-6],
         add_agent_edge_motion: false,
+        agent_edge_motion_scale: 1.0,
     });
     let workers = devices(&tiny_sigma).expect("devices");
     let err = Trainer::new(tiny_sigma, data(), workers, &dir.path().join("y"), false)
@@ -715,6 +720,7 @@ fn rtr_at_lambda_zero_waits_out_the_warm_up_then_imitates() {
         std_from_logs: false,
         std_scale: [1.0, 1.0],
         add_agent_edge_motion: false,
+        agent_edge_motion_scale: 1.0,
     });
     config.ppo.value_warmup_iterations = 1;
     config.optimizer.epochs = 2;
@@ -1092,6 +1098,58 @@ fn ppo_reevaluates_the_collected_observations_exactly() {
     }
 }
 
+/// One agent's end of episode in two collections of the same rollout under two reward
+/// settings: the value left at its last alive step, how much that step's return changed, and
+/// that return in the first.
+struct EpisodeEnd {
+    value_left: f64,
+    change: f64,
+    return_before: f64,
+}
+
+/// Per agent of `before` and `after`, the same rollout collected under two reward settings:
+/// its [`EpisodeEnd`]. Checks the rollouts sampled the same actions and that every earlier
+/// return of the agent moved by the last step's change, discounted by `gamma` per step.
+fn episode_ends(
+    before: &rtr::train::experience::Experience,
+    after: &rtr::train::experience::Experience,
+    gamma: f64,
+) -> Vec<EpisodeEnd> {
+    assert_eq!(
+        host(before.old_log_prob.clone()),
+        host(after.old_log_prob.clone())
+    );
+    let [b, n, steps] = after.alive.dims();
+    let alive = host_mask(after.alive.clone());
+    let (adv_before, ret_before, ret_after) = (
+        host(before.advantages.clone()),
+        host(before.returns.clone()),
+        host(after.returns.clone()),
+    );
+    let mut ends = Vec::new();
+    for agent in 0..b * n {
+        let row = agent * steps;
+        let Some(last) = (0..steps).rev().find(|&t| alive[row + t]) else {
+            continue;
+        };
+        let change = (ret_after[row + last] - ret_before[row + last]) as f64;
+        for t in 0..last {
+            let earlier = (ret_after[row + t] - ret_before[row + t]) as f64;
+            let expect = gamma.powi((last - t) as i32) * change;
+            assert!(
+                (earlier - expect).abs() < 1e-4,
+                "step {t}: {earlier} vs {expect}"
+            );
+        }
+        ends.push(EpisodeEnd {
+            value_left: (ret_before[row + last] - adv_before[row + last]) as f64,
+            change,
+            return_before: ret_before[row + last] as f64,
+        });
+    }
+    ends
+}
+
 /// `ppo.bootstrap_exits` changes nothing of the rollout, and only the returns of agents that
 /// leave the map: by gamma^(k+1) V(s) of the state s they left from, k steps before. The
 /// scene-level returns stay the sums of the agents' (GAE lambda 1), exits included.
@@ -1115,40 +1173,19 @@ fn exits_are_bootstrapped_only_where_agents_leave_the_map() {
     let gamma = config.ppo.gamma;
     let mut exits = 0;
     for (off, on) in terminated.iter().zip(&truncated) {
-        assert_eq!(
-            host(off.old_log_prob.clone()),
-            host(on.old_log_prob.clone())
-        );
-        let [b, n, steps] = on.alive.dims();
-        let alive = host_mask(on.alive.clone());
-        let (adv_off, ret_off, ret_on) = (
-            host(off.advantages.clone()),
-            host(off.returns.clone()),
-            host(on.returns.clone()),
-        );
-        for agent in 0..b * n {
-            let row = agent * steps;
-            let Some(last) = (0..steps).rev().find(|&t| alive[row + t]) else {
-                continue;
-            };
-            let value_left = (ret_off[row + last] - adv_off[row + last]) as f64;
-            let change = (ret_on[row + last] - ret_off[row + last]) as f64;
-            if change.abs() > 1e-6 {
+        for end in episode_ends(off, on, gamma) {
+            if end.change.abs() > 1e-6 {
                 exits += 1;
                 assert!(
-                    (change - gamma * value_left).abs() < 1e-4,
-                    "{change} vs {value_left}"
-                );
-            }
-            for t in 0..last {
-                let earlier = (ret_on[row + t] - ret_off[row + t]) as f64;
-                let expect = gamma.powi((last - t) as i32) * change;
-                assert!(
-                    (earlier - expect).abs() < 1e-4,
-                    "step {t}: {earlier} vs {expect}"
+                    (end.change - gamma * end.value_left).abs() < 1e-4,
+                    "{} vs {}",
+                    end.change,
+                    end.value_left
                 );
             }
         }
+        let [b, n, steps] = on.alive.dims();
+        let (alive, ret_on) = (host_mask(on.alive.clone()), host(on.returns.clone()));
         let scene_returns = host(on.scene_returns.clone());
         for scene in 0..b {
             for t in 0..steps {
@@ -1179,41 +1216,18 @@ fn collisions_struck_from_behind_cost_nothing_only_when_asked() {
     let gamma = config.ppo.gamma;
     let (mut waived, mut penalised) = (0, 0);
     for (off, on) in everyone.iter().zip(&at_fault) {
-        assert_eq!(
-            host(off.old_log_prob.clone()),
-            host(on.old_log_prob.clone())
-        );
         assert_eq!(off.stats.collided, on.stats.collided);
-        let [b, n, steps] = on.alive.dims();
-        let alive = host_mask(on.alive.clone());
-        let (adv_off, ret_off, ret_on) = (
-            host(off.advantages.clone()),
-            host(off.returns.clone()),
-            host(on.returns.clone()),
-        );
-        for agent in 0..b * n {
-            let row = agent * steps;
-            let Some(last) = (0..steps).rev().find(|&t| alive[row + t]) else {
-                continue;
-            };
-            let value_left = (ret_off[row + last] - adv_off[row + last]) as f64;
-            let change = (ret_on[row + last] - ret_off[row + last]) as f64;
-            if change.abs() > 1e-6 {
+        for end in episode_ends(off, on, gamma) {
+            if end.change.abs() > 1e-6 {
                 waived += 1;
                 assert!(
-                    (change - (1.0 + gamma * value_left)).abs() < 1e-4,
-                    "{change} vs 1 + gamma x {value_left}"
+                    (end.change - (1.0 + gamma * end.value_left)).abs() < 1e-4,
+                    "{} vs 1 + gamma x {}",
+                    end.change,
+                    end.value_left
                 );
-            } else if ret_off[row + last] < -0.5 {
+            } else if end.return_before < -0.5 {
                 penalised += 1;
-            }
-            for t in 0..last {
-                let earlier = (ret_on[row + t] - ret_off[row + t]) as f64;
-                let expect = gamma.powi((last - t) as i32) * change;
-                assert!(
-                    (earlier - expect).abs() < 1e-4,
-                    "step {t}: {earlier} vs {expect}"
-                );
             }
         }
     }

@@ -287,13 +287,18 @@ impl HeteroGnn {
 
     /// The same layers with `extra` more agent <- agent edge inputs (see
     /// [`EdgeMessage::with_extra_pose_inputs`]).
-    pub fn with_extra_agent_edge_inputs(self, extra: usize, rng: &mut impl rand::Rng) -> Self {
+    pub fn with_extra_agent_edge_inputs(
+        self,
+        extra: usize,
+        rng: &mut impl rand::Rng,
+        scale: f32,
+    ) -> Self {
         Self {
             agent_rounds: self
                 .agent_rounds
                 .into_iter()
                 .map(|round| AgentRound {
-                    from_agents: round.from_agents.with_extra_pose_inputs(extra, rng),
+                    from_agents: round.from_agents.with_extra_pose_inputs(extra, rng, scale),
                     ..round
                 })
                 .collect(),

@@ -40,16 +40,16 @@ impl EdgeMessage {
 
     /// The same messages with `extra` more edge inputs appended after the pose. Their weights
     /// are drawn from `rng` as a fresh layer of the widened size draws its own (burn's default
-    /// Kaiming-uniform, bound 1 / sqrt(fan-in)); the old weights are kept. Zero weights would keep
-    /// the outputs exactly, but Adam moves a weight by about the learning rate per step, so at
-    /// a fine-tune's 5e-5 they would stay near zero for the whole run and the new inputs unused.
-    pub fn with_extra_pose_inputs(self, extra: usize, rng: &mut impl Rng) -> Self {
+    /// Kaiming-uniform, bound 1 / sqrt(fan-in)), times `scale`; the old weights are kept.
+    /// `scale` 0 keeps the outputs exactly; Adam then moves each new weight by about the
+    /// learning rate per step, so at a fine-tune's 5e-5 they stay small for the whole run.
+    pub fn with_extra_pose_inputs(self, extra: usize, rng: &mut impl Rng, scale: f32) -> Self {
         let weight = self.pose.weight.val();
         let [rows, hidden] = weight.dims();
         let device = weight.device();
         let bound = 1.0 / ((rows + extra) as f32).sqrt();
         let drawn: Vec<f32> = (0..extra * hidden)
-            .map(|_| rng.random_range(-bound..bound))
+            .map(|_| rng.random_range(-bound..bound) * scale)
             .collect();
         let added = Tensor::<2>::from_data(TensorData::new(drawn, [extra, hidden]), &device);
         // Through plain data: a parameter must be a leaf of the autodiff graph, and a `cat`
@@ -163,10 +163,27 @@ mod tests {
         let mask = Tensor::<3>::random([2, 3, 4], Distribution::Default, &device).greater_elem(0.3);
         let before = message.aggregate_dense(senders.clone(), pose.clone(), mask.clone());
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
-        let widened = message.with_extra_pose_inputs(extra, &mut rng);
-        let padded = Tensor::cat(vec![pose, Tensor::zeros([2, 3, 4, extra], &device)], 3);
-        let after = widened.aggregate_dense(senders, padded, mask);
-        after
+        let widened = message.clone().with_extra_pose_inputs(extra, &mut rng, 1.0);
+        let padded = Tensor::cat(
+            vec![pose.clone(), Tensor::zeros([2, 3, 4, extra], &device)],
+            3,
+        );
+        let after = widened.aggregate_dense(senders.clone(), padded, mask.clone());
+        after.into_data().assert_approx_eq::<f32>(
+            &before.clone().into_data(),
+            burn::tensor::Tolerance::absolute(1e-6),
+        );
+        // Weights scaled to zero ignore whatever the new inputs hold.
+        let zeroed = message.with_extra_pose_inputs(extra, &mut rng, 0.0);
+        let moving = Tensor::cat(
+            vec![
+                pose,
+                Tensor::ones([2, 3, 4, extra], &device).mul_scalar(5.0),
+            ],
+            3,
+        );
+        zeroed
+            .aggregate_dense(senders, moving, mask)
             .into_data()
             .assert_approx_eq::<f32>(&before.into_data(), burn::tensor::Tolerance::absolute(1e-6));
     }

@@ -182,15 +182,17 @@ impl SceneEncoder {
     }
 
     /// The same encoder with `agent_edge_motion` switched on, the new inputs' weights drawn
-    /// from `rng`.
-    fn with_agent_edge_motion(self, rng: &mut impl rand::Rng) -> Self {
+    /// from `rng` times `scale`.
+    fn with_agent_edge_motion(self, rng: &mut impl rand::Rng, scale: f32) -> Self {
         if self.config.agent_edge_motion {
             return self;
         }
         Self {
-            interaction: self
-                .interaction
-                .with_extra_agent_edge_inputs(RELATIVE_MOTION_FEATURES, rng),
+            interaction: self.interaction.with_extra_agent_edge_inputs(
+                RELATIVE_MOTION_FEATURES,
+                rng,
+                scale,
+            ),
             config: ModelConfig {
                 agent_edge_motion: true,
                 ..self.config
@@ -296,10 +298,11 @@ impl PolicyNetwork {
     /// paper's pose-only edges warm-starts a run that gives the edges relative motion
     /// (`[init] add_agent_edge_motion`). Where no agent moves relative to another (equal
     /// velocities) the new inputs are zero and the actions are the old policy's.
-    pub fn with_agent_edge_motion(self, rng: &mut impl rand::Rng) -> Self {
+    /// `scale` multiplies the drawn weights: 0 keeps the warm start's actions exactly.
+    pub fn with_agent_edge_motion(self, rng: &mut impl rand::Rng, scale: f32) -> Self {
         Self {
             network: EncoderWithHead {
-                encoder: self.network.encoder.with_agent_edge_motion(rng),
+                encoder: self.network.encoder.with_agent_edge_motion(rng, scale),
                 head: self.network.head,
             },
         }
@@ -473,7 +476,7 @@ mod tests {
             .collect();
 
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
-        let widened = policy.with_agent_edge_motion(&mut rng);
+        let widened = policy.with_agent_edge_motion(&mut rng, 1.0);
         let with_motion = widened.config().clone();
         assert!(with_motion.agent_edge_motion);
         assert_eq!(

@@ -381,6 +381,19 @@ pub struct InitConfig {
     /// where no agent moves relative to another the actions are the warm start's).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub add_agent_edge_motion: bool,
+    /// With `add_agent_edge_motion`: the new inputs' drawn weights times this. 0 keeps the warm
+    /// start's actions exactly (the drawn ones perturbed a warm start's interaction features
+    /// enough to add 11-18 points of long-tail collisions, `experiments/recipe/car_following`).
+    #[serde(default = "unit_scale", skip_serializing_if = "is_unit_scale")]
+    pub agent_edge_motion_scale: f64,
+}
+
+fn unit_scale() -> f64 {
+    1.0
+}
+
+fn is_unit_scale(scale: &f64) -> bool {
+    *scale == 1.0
 }
 
 fn unit_std_scale() -> [f64; 2] {
@@ -801,6 +814,14 @@ impl TrainConfig {
             );
         }
         if let Some(init) = &self.init {
+            if !(init.agent_edge_motion_scale.is_finite() && init.agent_edge_motion_scale >= 0.0)
+                || (init.agent_edge_motion_scale != 1.0 && !init.add_agent_edge_motion)
+            {
+                return fail(
+                    "init.agent_edge_motion_scale",
+                    "expected a factor >= 0 for the weights of init.add_agent_edge_motion",
+                );
+            }
             if !init.std_scale.iter().all(|s| s.is_finite() && *s > 0.0) {
                 return fail("init.std_scale", "expected two finite factors > 0");
             }
@@ -958,6 +979,12 @@ mod tests {
             TrainConfig::from_toml_str(&format!("{widen}[model]\nagent_edge_motion = true\n"), "r")
                 .expect("widening a pose-only warm start");
         assert!(config.model.agent_edge_motion);
+        let alone = "method = \"IL\"\n[init]\npolicy = \"il\"\nagent_edge_motion_scale = 0.0\n";
+        let err = TrainConfig::from_toml_str(alone, "run.toml").expect_err("nothing to scale");
+        assert!(
+            err.to_string().contains("init.agent_edge_motion_scale"),
+            "{err}"
+        );
         let scaled = "method = \"RTR\"\n[init]\npolicy = \"il\"\nstd_scale = [1.0, 0.25]\n";
         let err = TrainConfig::from_toml_str(scaled, "run.toml").expect_err("no sigma to scale");
         assert!(

@@ -361,7 +361,10 @@ impl<'d> Trainer<'d> {
                                 u64::MAX - 1,
                             ));
                             checkpoint::load_policy(&init.policy_file(), &pose_only, &main)?
-                                .with_agent_edge_motion(&mut rng)
+                                .with_agent_edge_motion(
+                                    &mut rng,
+                                    init.agent_edge_motion_scale as f32,
+                                )
                         } else {
                             checkpoint::load_module(policy, &init.policy_file())?
                         };
