@@ -17,8 +17,10 @@
 //! agent-steps, the agents, E[A eta] and its t statistic with the agents as independent units
 //! (their steps share one return). A negative acceleration entry for `closing` is a push towards
 //! braking. The t statistic grows with the square root of the scenes: t = 4 over 96 scenes is
-//! about 1.2 over the 8 long-tail scenes of one PPO iteration of the recipe. SIGMA (`ACC,STEER`, m/s^2 and rad) replaces the checkpoint's exploration sigma, e.g.
-//! to ask whether a wider acceleration sigma makes the braking credit clearer.
+//! about 1.2 over the 8 long-tail scenes of one PPO iteration of the recipe.
+//!
+//! SIGMA (`ACC,STEER`, m/s^2 and rad) replaces the checkpoint's exploration sigma, e.g. to ask
+//! whether a wider acceleration sigma makes the braking credit clearer.
 //!
 //! Why this exists: no PPO run of issue 18 learned to brake for a slower car ahead
 //! (`experiments/recipe/steer_feedforward/results.md`).
@@ -28,7 +30,7 @@ use std::path::Path;
 use burn::prelude::*;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use rtr::model::{AgentInput, LaneInput, PolicyNetwork, ValueNetwork};
+use rtr::model::{AgentInput, PolicyNetwork, ValueNetwork};
 use rtr::sim::MapCaches;
 use rtr::train::experience::{CollectNetworks, Experience, RewardSettings, collect};
 use rtr::train::{TrainConfig, TrainingData};
@@ -40,6 +42,8 @@ const MIN_CLOSING_MPS: f32 = 2.0;
 const MAX_TTC_S: f32 = 8.0;
 /// Scenes per collected part (as training's minibatch).
 const PART_SCENES: usize = 8;
+/// The history's speeds are in network units: m/s x 0.1 (`SPEED_SCALE`, src/model/input.rs).
+const NETWORK_SPEED_PER_MPS: f32 = 0.1;
 
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
 enum Situation {
@@ -174,11 +178,11 @@ fn agent_sums(exp: &Experience, policy: &PolicyNetwork) -> Vec<AgentSums> {
     let advantages = host(exp.advantages.clone());
     let alive = host_bool(exp.alive.clone());
     let lengths = host(exp.batch.agent_size.clone().narrow(2, 0, 1).reshape([b, n]));
-    let lanes = LaneInput::from_batch(&exp.batch, policy.config());
-    let encoded = policy.encode_lanes(&lanes);
+    let lanes = &exp.lanes;
+    let encoded = policy.encode_lanes(lanes);
     let mut sums = vec![AgentSums::default(); b * n];
     for (t, (agents, action)) in exp.observations.iter().zip(&exp.actions).enumerate() {
-        let dist = exp.as_sampled(t, policy.forward(agents, &lanes, &encoded));
+        let dist = exp.as_sampled(t, policy.forward(agents, lanes, &encoded));
         let eta = host((action.clone() - dist.mean.clone()) / dist.std());
         let situations = situations(agents, &lengths, policy);
         for i in 0..b * n {
@@ -213,7 +217,7 @@ fn situations(agents: &AgentInput, lengths: &[f32], policy: &PolicyNetwork) -> V
             .reshape([b, n]),
     )
     .into_iter()
-    .map(|v| v * 10.0)
+    .map(|v| v / NETWORK_SPEED_PER_MPS)
     .collect();
     debug_assert!(speed_feature < f);
     let mut out = vec![Situation::Free; b * n];
