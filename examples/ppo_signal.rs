@@ -61,7 +61,17 @@ struct AgentSums {
     a_eta: [[f64; 2]; 3],
 }
 
-fn main() -> Result<(), Box<dyn std::error::Error>> {
+fn main() -> std::process::ExitCode {
+    match run() {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("ppo_signal: {e}");
+            std::process::ExitCode::from(2)
+        }
+    }
+}
+
+fn run() -> Result<(), Box<dyn std::error::Error>> {
     rtr::allocator::tune_for_tensors();
     let args: Vec<String> = std::env::args().skip(1).collect();
     if args.len() < 3 {
@@ -75,14 +85,33 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         None => 96,
         Some(s) => s
             .parse()
-            .map_err(|_| format!("SCENES: expected a count of scenes, got `{s}`"))?,
+            .ok()
+            .filter(|&k: &usize| k > 0)
+            .ok_or_else(|| format!("SCENES: expected a count of scenes >= 1, got `{s}`"))?,
     };
     let sigma = args.get(4).map(|s| parse_sigma(s)).transpose()?;
     let mut config = TrainConfig::from_toml_file(Path::new(&args[0]))?;
-    config.data.longtail_dir = Some(Path::new(&args[2]).to_path_buf());
+    let scenarios = Path::new(&args[2]);
+    if !scenarios.join("train").is_dir() {
+        return Err(format!(
+            "SCENARIOS {}: no train/ folder in it; expected the folder `rtr scenarios generate \
+             --out` wrote",
+            scenarios.display()
+        )
+        .into());
+    }
+    config.data.longtail_dir = Some(scenarios.to_path_buf());
     #[allow(deprecated)]
     let device = Device::ndarray();
     let checkpoint = Path::new(&args[1]);
+    if !checkpoint.join("value.bpk").is_file() {
+        return Err(format!(
+            "CHECKPOINT {}: no value.bpk in it; expected a training checkpoint folder (policy.bpk \
+             and value.bpk), e.g. RUN/checkpoints/iter-000009",
+            checkpoint.display()
+        )
+        .into());
+    }
     let policy = rtr::train::checkpoint::load_policy(
         &checkpoint.join("policy.bpk"),
         &config.model,
