@@ -116,7 +116,8 @@ impl InteractionEdges {
         let mut agent_agent_pose =
             relative_pose(pairs(agent_pose, 2), pairs(agent_pose, 1), wavelengths);
         if config.agent_edge_motion {
-            let motion = relative_motion(pairs(agent_state, 2), pairs(agent_state, 1));
+            let motion = relative_motion(pairs(agent_state, 2), pairs(agent_state, 1))
+                .mul_scalar(config.agent_edge_motion_gain);
             agent_agent_pose = Tensor::cat(vec![agent_agent_pose, motion], 3);
         }
         let not_self = Tensor::<2, Int>::eye(n, &device)
@@ -364,5 +365,56 @@ impl HeteroGnn {
             a = next_a;
         }
         a
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use burn::tensor::{Distribution, Tolerance};
+
+    use crate::model::relative_motion::RELATIVE_MOTION_FEATURES;
+
+    /// The gain multiplies the relative-motion columns of the agent <- agent edges and nothing
+    /// else.
+    #[test]
+    fn motion_gain_scales_only_the_motion_inputs() {
+        #[allow(deprecated)]
+        let device = Device::ndarray();
+        let (b, n, l) = (2, 4, 6);
+        let agents = Tensor::<3>::random([b, n, 4], Distribution::Uniform(-20.0, 20.0), &device);
+        let lanes = Tensor::<3>::random([b, l, 3], Distribution::Uniform(-20.0, 20.0), &device);
+        let agent_mask = Tensor::<2>::ones([b, n], &device).greater_elem(0.5);
+        let lane_mask = Tensor::<2>::ones([b, l], &device).greater_elem(0.5);
+        let edges = |gain: f64| {
+            let config = ModelConfig {
+                agent_edge_motion: true,
+                agent_edge_motion_gain: gain,
+                ..ModelConfig::small()
+            };
+            InteractionEdges::build(&agents, &agent_mask, &lanes, &lane_mask, &config)
+                .agent_agent_pose
+        };
+        let (unit, tenfold) = (edges(1.0), edges(10.0));
+        let width = unit.dims()[3];
+        let pose = width - RELATIVE_MOTION_FEATURES;
+        let split = |t: &Tensor<4>| {
+            (
+                t.clone().narrow(3, 0, pose),
+                t.clone().narrow(3, pose, RELATIVE_MOTION_FEATURES),
+            )
+        };
+        let ((pose_1, motion_1), (pose_10, motion_10)) = (split(&unit), split(&tenfold));
+        pose_10
+            .into_data()
+            .assert_approx_eq::<f32>(&pose_1.into_data(), Tolerance::absolute(1e-6));
+        motion_10.into_data().assert_approx_eq::<f32>(
+            &motion_1.clone().mul_scalar(10.0).into_data(),
+            Tolerance::absolute(1e-4),
+        );
+        assert!(
+            motion_1.abs().max().into_scalar::<f32>() > 0.01,
+            "random agents move relative to each other"
+        );
     }
 }
