@@ -32,6 +32,18 @@ fn data_summary_json_has_the_documented_fields() {
         assert!(v[key].is_number(), "{key} missing in {v}");
     }
     assert!(v["train_scenes"].as_u64().unwrap() > v["test_scenes"].as_u64().unwrap());
+    // Every closing event of the logged drivers has exactly one response.
+    let closing = &v["logged_closing"];
+    let count = |key: &str| {
+        closing[key]
+            .as_u64()
+            .unwrap_or_else(|| panic!("{key} in {closing}"))
+    };
+    assert!(count("events") > 0, "{closing}");
+    assert_eq!(
+        count("events"),
+        count("lane_changes") + count("braked") + count("neither")
+    );
 }
 
 #[test]

@@ -1,6 +1,7 @@
 //! `rtr data summary`: one JSON object describing the nominal dataset as rtr sees it.
 
 use super::a9::A9Dataset;
+use super::closing_events::{ClosingEvents, closing_events};
 use super::logged_infractions::logged_infractions;
 use super::windows::SceneConfig;
 use crate::error::Result;
@@ -31,6 +32,9 @@ pub struct DataSummary {
     pub logged_offroad_samples: usize,
     pub logged_exiting_samples: usize,
     pub logged_colliding_pairs: usize,
+    /// Where a logged driver closes on the car ahead in its lane, and what it does next
+    /// ([`super::closing_events`]): the demonstrations imitation has for braking.
+    pub logged_closing: ClosingEvents,
 }
 
 pub fn summarize(dataset: &A9Dataset, config: &SceneConfig) -> Result<DataSummary> {
@@ -72,5 +76,6 @@ pub fn summarize(dataset: &A9Dataset, config: &SceneConfig) -> Result<DataSummar
         logged_offroad_samples: infractions.offroad_samples,
         logged_exiting_samples: infractions.exiting_samples,
         logged_colliding_pairs: infractions.colliding_pairs,
+        logged_closing: closing_events(rec),
     })
 }

@@ -14,6 +14,7 @@ pub use parse::{CommonRoadDocument, FORMAT_VERSIONS, Obstacle, ObstacleState, pa
 
 use super::a9::LANE_NODE_LENGTH;
 use super::automatum::Recording;
+use super::closing_events::{ClosingEvents, closing_events};
 use super::track::{AgentState, MAX_SPEED, Track, TrackSample, VehicleClass};
 use super::windows::{SceneConfig, build_all_scenes};
 use crate::error::{Error, Result};
@@ -205,6 +206,10 @@ pub struct ClipSummary {
     pub lanes_without_speed_limit: usize,
     /// m/s, given to those lanes.
     pub default_speed_limit: f64,
+    /// Where a driver closes on the car ahead in its lane and what it does next
+    /// ([`crate::data::closing_events`]). The files carry no lane label, so a lane change
+    /// counts as braking or neither here.
+    pub closing: ClosingEvents,
 }
 
 /// The scenes of every clip, in order, and a summary per clip.
@@ -244,6 +249,7 @@ pub fn commonroad_scenes(
             planning_vehicle_removed: clip.planning_vehicle_removed(),
             lanes_without_speed_limit: clip.lanes_without_speed_limit,
             default_speed_limit: clip.default_speed_limit,
+            closing: closing_events(&clip.recording),
         });
         scenes.extend(clip_scenes);
     }
@@ -273,6 +279,10 @@ pub fn describe_clips(summaries: &[ClipSummary]) -> String {
         if s.planning_vehicle_removed {
             text.push_str("; read without the planning problem's vehicle (T-1)");
         }
+        text.push_str(&format!(
+            "; {} closing on the car ahead, {} of them braking",
+            s.closing.events, s.closing.braked
+        ));
         text.push('\n');
     }
     let scenes: usize = summaries.iter().map(|s| s.scenes).sum();
