@@ -2,7 +2,7 @@
 //! which way does PPO push the acceleration of a car that closes on the one ahead, and how
 //! clearly?
 //!
-//! Collects PPO experience exactly as training does (the run file's data, dynamics and PPO
+//! Collects PPO experience exactly as training does (the run file's data, dynamics, reward and PPO
 //! settings; the checkpoint's policy, sigma and value network) from SCENES long-tail initial
 //! states of SCENARIOS/train (default 96), and sorts every alive agent-step by what is around
 //! the agent:
@@ -91,6 +91,15 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
     };
     let sigma = args.get(4).map(|s| parse_sigma(s)).transpose()?;
     let mut config = TrainConfig::from_toml_file(Path::new(&args[0]))?;
+    if config.method.uses_reference() {
+        return Err(format!(
+            "RUN_FILE {}: method {} scores against a frozen reference policy, which this probe \
+             does not load; give a run file of BC+RL, RL, RL-Shaped or RTR",
+            args[0],
+            config.method.name()
+        )
+        .into());
+    }
     let scenarios = Path::new(&args[2]);
     if !scenarios.join("train").is_dir() {
         return Err(format!(
@@ -166,10 +175,7 @@ fn collect_longtail(
         value,
         reference: None,
     };
-    let rewards = RewardSettings {
-        shaping: None,
-        kl_weight: None,
-    };
+    let rewards = RewardSettings::of(config);
     let mut caches = MapCaches::default();
     let mut out = Vec::new();
     for (k, chunk) in states.chunks(PART_SCENES).enumerate() {

@@ -6,13 +6,13 @@ mod common;
 use std::sync::Arc;
 
 use burn::prelude::*;
-use burn::tensor::TensorData;
+use burn::tensor::{Bool, TensorData};
 use rtr::data::{AgentState, VehicleClass};
 use rtr::map::{BoxOnRoad, LaneGraph, Map, ProceduralMap};
 use rtr::scene::{AgentRole, Scene, SceneAgent, SceneBatch};
 use rtr::sim::{
-    Controls, Dynamics, MapCaches, Observation, RolloutConfig, Scripted, coast, replay_logs,
-    rollout,
+    Controls, Dynamics, MapCaches, Observation, Policy, Rollout, RolloutConfig, Scripted, coast,
+    replay_logs, rollout,
 };
 
 #[allow(deprecated)]
@@ -49,6 +49,30 @@ fn inverse_model_replays_the_real_logs() {
     assert!(simulated.iter().filter(|&&s| s).count() >= report.agent_steps);
 }
 
+/// `scene` rolled out with `script` driving the agents in `mask` and a coasting policy the rest.
+fn scripted_rollout(
+    scene: &Scene,
+    batch: &SceneBatch,
+    script: &mut dyn Policy,
+    mask: Tensor<2, Bool>,
+) -> Rollout {
+    let mut policy = coast;
+    let mut mixed = Scripted {
+        policy: &mut policy,
+        script,
+        mask,
+    };
+    rollout(
+        &[scene],
+        batch,
+        &Dynamics::bicycle(0.5),
+        &mut mixed,
+        &mut MapCaches::default(),
+        &RolloutConfig::default(),
+    )
+    .expect("rollout")
+}
+
 #[test]
 fn scripted_agents_take_the_script_and_others_the_policy() {
     let y = -1.875;
@@ -60,21 +84,7 @@ fn scripted_agents_take_the_script_and_others_the_policy() {
         accel: Tensor::ones(obs.state.speed.dims(), &obs.state.speed.device()).mul_scalar(2.0),
         steer: Tensor::zeros(obs.state.speed.dims(), &obs.state.speed.device()),
     };
-    let mut policy = coast;
-    let mut mixed = Scripted {
-        policy: &mut policy,
-        script: &mut script,
-        mask,
-    };
-    let out = rollout(
-        &[&scene],
-        &batch,
-        &Dynamics::bicycle(0.5),
-        &mut mixed,
-        &mut MapCaches::default(),
-        &RolloutConfig::default(),
-    )
-    .expect("rollout");
+    let out = scripted_rollout(&scene, &batch, &mut script, mask);
     let poses = values(out.poses.reshape([1, 2, 20]));
     let speed = |agent: usize, k: usize| poses[agent * 20 + k * 4 + 3];
     let limited = 4.0 * (2.0f64 / 4.0).tanh();
@@ -91,22 +101,7 @@ fn heroes_are_never_simulated_policy_agents() {
     let mut scene = straight_scene(&[(100.0, y, 0.0, 20.0), (200.0, y, 0.0, 20.0)], 4);
     scene.agents[1].role = AgentRole::Hero;
     let batch = SceneBatch::from_scenes(&[&scene], &cpu()).expect("batch");
-    let mut script = coast;
-    let mut policy = coast;
-    let mut mixed = Scripted {
-        policy: &mut policy,
-        script: &mut script,
-        mask: batch.agent_hero.clone(),
-    };
-    let out = rollout(
-        &[&scene],
-        &batch,
-        &Dynamics::bicycle(0.5),
-        &mut mixed,
-        &mut MapCaches::default(),
-        &RolloutConfig::default(),
-    )
-    .expect("rollout");
+    let out = scripted_rollout(&scene, &batch, &mut coast, batch.agent_hero.clone());
     let simulated = flags(&out.simulated);
     let steps = simulated.len() / 2;
     assert!(simulated[..steps].iter().all(|&s| s), "{simulated:?}");

@@ -12,7 +12,7 @@ use burn::tensor::{Bool, TensorData};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
-use super::config::{PpoConfig, ShapingConfig};
+use super::config::{Method, PpoConfig, ShapingConfig, TrainConfig};
 use super::gae::gae;
 use super::shaping::speed_shaping;
 use super::sources::Part;
@@ -43,6 +43,18 @@ pub struct RewardSettings {
     /// KL-R: reward -= weight x (log pi(a) - log pi_ref(a)) per agent-step, a sample of
     /// KL(pi || pi_ref).
     pub kl_weight: Option<f64>,
+}
+
+impl RewardSettings {
+    /// The reward `config`'s method trains on: the speed-limit term for RL-Shaped, the KL
+    /// term (with the reference's weight) for KL-R, the sparse infraction reward alone else.
+    pub fn of(config: &TrainConfig) -> Self {
+        Self {
+            shaping: (config.method == Method::RlShaped).then(|| config.shaping.clone()),
+            kl_weight: (config.method == Method::KlReward)
+                .then(|| config.reference.as_ref().map_or(0.0, |r| r.weight)),
+        }
+    }
 }
 
 /// What a collection reports (for curves).

@@ -607,11 +607,7 @@ impl<'d> Trainer<'d> {
         let value = self.value.valid();
         let reference = self.reference.clone();
         let dynamics = &self.dynamics;
-        let rewards = RewardSettings {
-            shaping: (config.method == Method::RlShaped).then(|| config.shaping.clone()),
-            kl_weight: (config.method == Method::KlReward)
-                .then(|| config.reference.as_ref().map_or(0.0, |r| r.weight)),
-        };
+        let rewards = RewardSettings::of(config);
         per_device(shards, &mut self.caches, |k, parts, caches| {
             let device = &devices[k];
             let (policy, value) = (policy.clone().fork(device), value.clone().fork(device));
