@@ -13,7 +13,9 @@
 //! for what is ahead shows negative accelerations growing with the closing speed and the
 //! leader's braking, and keeps the gap positive. `--idm` adds the IDM reference driver;
 //! `--kicks` adds a second table: the follower's first action offset by one exploration sigma
-//! per control, and the change of its training return ([`print_kicks`]).
+//! per control, and the change of its training return ([`print_kicks`]); `--approached` a third:
+//! the policy car's acceleration when a faster car closes on it from behind
+//! ([`print_approached`]).
 //!
 //! This is the long-tail collision of `experiments/main/recipe/results.md` in isolation: there
 //! the cars that ran into a slower car ahead started about 7 m/s faster and held their speed.
@@ -62,22 +64,27 @@ struct Case {
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     rtr::allocator::tune_for_tensors();
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let options = ["--idm", "--kicks"];
+    let options = ["--idm", "--kicks", "--approached"];
     if let Some(flag) = args
         .iter()
         .find(|a| a.starts_with("--") && !options.contains(&a.as_str()))
     {
-        return Err(format!("unknown option {flag}: the options are --idm and --kicks").into());
+        return Err(format!(
+            "unknown option {flag}: the options are --idm, --kicks and --approached"
+        )
+        .into());
     }
     let with_idm = args.iter().any(|a| a == "--idm");
     let with_kicks = args.iter().any(|a| a == "--kicks");
+    let with_approached = args.iter().any(|a| a == "--approached");
     let checkpoints: Vec<&String> = args
         .iter()
         .filter(|a| !options.contains(&a.as_str()))
         .collect();
     if checkpoints.is_empty() && !with_idm {
         return Err(
-            "usage: cargo run --release --example car_following -- [--idm] [--kicks] CHECKPOINT..."
+            "usage: cargo run --release --example car_following -- [--idm] [--kicks] [--approached] \
+             CHECKPOINT..."
                 .into(),
         );
     }
@@ -172,6 +179,59 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if with_kicks {
         println!();
         print_kicks(&drivers, &set, &cases, lane_y, &device, &config)?;
+    }
+    if with_approached {
+        println!();
+        let road = (&map, &graph, lane_y);
+        print_approached(&drivers, road, &device, &config)?;
+    }
+    Ok(())
+}
+
+/// The policy car approached from behind: a replayed car in its lane, 20, 40 or 60 m behind,
+/// closing at 0, 4 or 8 m/s. A car-following driver does not react (IDM looks ahead only); a
+/// policy that brakes here reads a closing car behind as one ahead, and in closed loop its
+/// own followers run into it.
+fn print_approached(
+    drivers: &[(String, Box<dyn EvalPolicy>, Dynamics)],
+    (map, graph, lane_y): (&Arc<Map>, &Arc<LaneGraph>, f64),
+    device: &burn::prelude::Device,
+    config: &EvalConfig,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let cases: Vec<(f64, f64)> = CLOSING_SPEEDS
+        .into_iter()
+        .flat_map(|closing| GAPS_M.into_iter().map(move |gap| (closing, gap)))
+        .collect();
+    let set = EvalScenes {
+        set: EvalSet::Nominal,
+        scenes: cases
+            .iter()
+            .enumerate()
+            .map(|(k, &(closing, gap))| approached_scene(k, closing, gap, map, graph, lane_y))
+            .collect(),
+        scenarios: Vec::new(),
+    };
+    println!(
+        "| policy | accel when approached from behind, closing 0 / 4 / 8 m/s, first 2 s (m/s^2) |"
+    );
+    println!("|---|---|");
+    for (name, policy, dynamics) in drivers {
+        let simulated = simulate_set(policy.as_ref(), dynamics, &set, device, config, None)?;
+        let accel: Vec<f64> = simulated
+            .iter()
+            .map(|s| measure(s, lane_y).early_accel)
+            .collect();
+        let mean = |closing: f64| {
+            let picked: Vec<f64> = cases
+                .iter()
+                .zip(&accel)
+                .filter(|((c, _), _)| *c == closing)
+                .map(|(_, a)| *a)
+                .collect();
+            picked.iter().sum::<f64>() / picked.len().max(1) as f64
+        };
+        let [a0, a4, a8] = CLOSING_SPEEDS.map(mean);
+        println!("| {name} | {a0:+.2} / {a4:+.2} / {a8:+.2} |");
     }
     Ok(())
 }
@@ -376,18 +436,48 @@ fn leader_states(case: &Case, start_x: f64, y: f64) -> Vec<AgentState> {
     states
 }
 
-fn scene(k: usize, case: &Case, map: &Arc<Map>, graph: &Arc<LaneGraph>, y: f64) -> Scene {
-    let follower_speed = LEADER_SPEED + case.closing;
-    let follower: Vec<AgentState> = (0..=HISTORY_STEPS + FUTURE_STEPS)
+/// Constant speed along the middle lane, passing `x_now` at the scene's current step.
+fn steady_states(x_now: f64, speed: f64, y: f64) -> Vec<AgentState> {
+    (0..=HISTORY_STEPS + FUTURE_STEPS)
         .map(|i| AgentState {
-            x: FOLLOWER_START_M + follower_speed * DT * (i as f64 - HISTORY_STEPS as f64),
+            x: x_now + speed * DT * (i as f64 - HISTORY_STEPS as f64),
             y,
             heading: 0.0,
-            speed: follower_speed,
+            speed,
             accel: 0.0,
         })
-        .collect();
+        .collect()
+}
+
+fn scene(k: usize, case: &Case, map: &Arc<Map>, graph: &Arc<LaneGraph>, y: f64) -> Scene {
+    let follower = steady_states(FOLLOWER_START_M, LEADER_SPEED + case.closing, y);
     let leader = leader_states(case, FOLLOWER_START_M + case.gap + LENGTH_M, y);
+    two_car_scene(format!("following-{k}"), follower, leader, map, graph)
+}
+
+/// The policy car (agent 0) at the leader's speed, with a replayed car `gap` m behind it
+/// closing at `closing` m/s.
+fn approached_scene(
+    k: usize,
+    closing: f64,
+    gap: f64,
+    map: &Arc<Map>,
+    graph: &Arc<LaneGraph>,
+    y: f64,
+) -> Scene {
+    let policy_car = steady_states(FOLLOWER_START_M, LEADER_SPEED, y);
+    let behind = steady_states(FOLLOWER_START_M - gap - LENGTH_M, LEADER_SPEED + closing, y);
+    two_car_scene(format!("approached-{k}"), policy_car, behind, map, graph)
+}
+
+/// Agent 0 driven by the policy, agent 1 replayed.
+fn two_car_scene(
+    id: String,
+    controlled: Vec<AgentState>,
+    replayed: Vec<AgentState>,
+    map: &Arc<Map>,
+    graph: &Arc<LaneGraph>,
+) -> Scene {
     let agent = |id: usize, role: AgentRole, states: Vec<AgentState>| SceneAgent {
         track_id: id,
         class: VehicleClass::Car,
@@ -398,7 +488,7 @@ fn scene(k: usize, case: &Case, map: &Arc<Map>, graph: &Arc<LaneGraph>, y: f64) 
         states,
     };
     Scene {
-        id: format!("following-{k}"),
+        id,
         t0: 0.0,
         dt: DT,
         history_steps: HISTORY_STEPS,
@@ -406,8 +496,8 @@ fn scene(k: usize, case: &Case, map: &Arc<Map>, graph: &Arc<LaneGraph>, y: f64) 
         map: map.clone(),
         lane_graph: graph.clone(),
         agents: vec![
-            agent(0, AgentRole::Controlled, follower),
-            agent(1, AgentRole::Replayed, leader),
+            agent(0, AgentRole::Controlled, controlled),
+            agent(1, AgentRole::Replayed, replayed),
         ],
     }
 }
