@@ -107,15 +107,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             })
         })
         .collect();
-    let set = EvalScenes {
-        set: EvalSet::Nominal,
-        scenes: cases
+    let set = probe_set(
+        cases
             .iter()
             .enumerate()
             .map(|(k, case)| scene(k, case, &map, &graph, lane_y))
             .collect(),
-        scenarios: Vec::new(),
-    };
+    );
     let config = EvalConfig {
         resamples: 10,
         realism_samples: 0,
@@ -202,15 +200,13 @@ fn print_approached(
         .into_iter()
         .flat_map(|closing| GAPS_M.into_iter().map(move |gap| (closing, gap)))
         .collect();
-    let set = EvalScenes {
-        set: EvalSet::Nominal,
-        scenes: cases
+    let set = probe_set(
+        cases
             .iter()
             .enumerate()
             .map(|(k, &(closing, gap))| approached_scene(k, closing, gap, map, graph, lane_y))
             .collect(),
-        scenarios: Vec::new(),
-    };
+    );
     println!(
         "| policy | accel when approached from behind, closing 0 / 4 / 8 m/s, first 2 s (m/s^2) |"
     );
@@ -434,6 +430,15 @@ fn leader_states(case: &Case, start_x: f64, y: f64) -> Vec<AgentState> {
         speed = next;
     }
     states
+}
+
+/// Probe scenes as an evaluation set (no long-tail scenarios: no scripted heroes).
+fn probe_set(scenes: Vec<Scene>) -> EvalScenes {
+    EvalScenes {
+        set: EvalSet::Nominal,
+        scenes,
+        scenarios: Vec::new(),
+    }
 }
 
 /// Constant speed along the middle lane, passing `x_now` at the scene's current step.
