@@ -9,12 +9,13 @@
 //! (DAgger: the network drives with its mean action, IDM labels every state it visits, so the
 //! states are the network's own, collisions included).
 //!
-//! Starting from POLICY (a trained policy folder), each of STEPS Adam steps (default 300, LR
-//! default 2e-4, global gradient norm clipped at 1; LR 0 only measures the fit) rolls out 8
-//! initial states drawn as RUN_FILE's training does (its data mixture, alpha and dynamics;
-//! long-tail states from SCENARIOS/train) and minimises, over the controlled agents present,
-//! the squared distance of the network's mean controls to IDM's as the dynamics apply them
-//! (after the limits' soft clamp), each control divided by the model's `action_scale`.
+//! Starting from POLICY (a trained policy folder), each of STEPS AdamW steps (default 300, LR
+//! default 2e-4, burn's default weight decay 1e-4, global gradient norm clipped at 1; LR 0 only
+//! measures the fit) rolls out 8 initial states drawn as RUN_FILE's training does (its data
+//! mixture, alpha and dynamics; long-tail states from SCENARIOS/train) and minimises, over the
+//! controlled agents present, the squared distance of the network's mean controls to IDM's as
+//! the dynamics apply them (after the limits' soft clamp), each control divided by the model's
+//! `action_scale`.
 //! `--accel-only` leaves the steering out of the loss (its scaled error can dominate the
 //! clipped gradient); `--keep-steering` fits the steering to a frozen copy of POLICY instead of
 //! IDM, so only the acceleration is taught and the lane keeping stays the starting policy's.
@@ -344,7 +345,7 @@ struct Labelled<'n> {
 #[derive(Clone, Copy)]
 struct ControlPair {
     network: [f32; 2],
-    idm: [f32; 2],
+    target: [f32; 2],
 }
 
 impl Policy for Labelled<'_> {
@@ -383,13 +384,13 @@ impl Policy for Labelled<'_> {
                 .try_into_vec::<f32>()
                 .unwrap_or_default()
         };
-        let (network, idm) = (host(&applied), host(&target));
+        let (network, targets) = (host(&applied), host(&target));
         for (k, &m) in mask_host.iter().enumerate() {
             if m {
                 self.count += 1;
                 self.pairs.push(ControlPair {
                     network: [network[2 * k], network[2 * k + 1]],
-                    idm: [idm[2 * k], idm[2 * k + 1]],
+                    target: [targets[2 * k], targets[2 * k + 1]],
                 });
             }
         }
@@ -412,7 +413,7 @@ impl Report {
         let rmse = |pairs: &[&ControlPair], c: usize| -> f64 {
             let sum: f64 = pairs
                 .iter()
-                .map(|p| ((p.network[c] - p.idm[c]) as f64).powi(2))
+                .map(|p| ((p.network[c] - p.target[c]) as f64).powi(2))
                 .sum();
             (sum / pairs.len().max(1) as f64).sqrt()
         };
@@ -423,7 +424,7 @@ impl Report {
         let braking: Vec<&ControlPair> = self
             .pairs
             .iter()
-            .filter(|p| p.idm[0] < BRAKING_MPS2)
+            .filter(|p| p.target[0] < BRAKING_MPS2)
             .collect();
         serde_json::json!({
             "step": step,
@@ -433,13 +434,13 @@ impl Report {
             "steer_rmse": rmse(&all, 1),
             "braking_agent_steps": braking.len(),
             "braking_acc_rmse": rmse(&braking, 0),
-            "braking_idm_acc": mean(braking.iter().map(|p| p.idm[0]).collect()),
+            "braking_idm_acc": mean(braking.iter().map(|p| p.target[0]).collect()),
             "braking_network_acc": mean(braking.iter().map(|p| p.network[0]).collect()),
             "by_idm_acc": LABEL_BINS.map(|(lo, hi)| {
                 let bin: Vec<&ControlPair> = self
                     .pairs
                     .iter()
-                    .filter(|p| (lo..hi).contains(&p.idm[0]))
+                    .filter(|p| (lo..hi).contains(&p.target[0]))
                     .collect();
                 serde_json::json!({
                     "idm_acc_from": lo,
