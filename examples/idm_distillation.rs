@@ -41,11 +41,9 @@ use rand_chacha::ChaCha8Rng;
 use rtr::driver::{IdmDriver, IdmParams};
 use rtr::eval::TrainedPolicy;
 use rtr::model::{ActionMode, NetworkPolicy, PolicyNetwork};
-use rtr::scenario::hero_scripts;
+use rtr::scenario::rollout_with_heroes;
 use rtr::scene::SceneBatch;
-use rtr::sim::{
-    ActionLimits, Controls, MapCaches, Observation, Policy, RolloutConfig, Scripted, rollout,
-};
+use rtr::sim::{ActionLimits, Controls, MapCaches, Observation, Policy, RolloutConfig};
 use rtr::train::gradients::clip_global_norm;
 use rtr::train::{Part, TrainConfig, TrainingData};
 
@@ -281,31 +279,15 @@ impl Distillation<'_> {
             count: 0,
             pairs: Vec::new(),
         };
-        if part.is_nominal() {
-            rollout(
-                &part.scenes,
-                &batch,
-                dynamics,
-                &mut labelled,
-                caches,
-                &rollout_config,
-            )?;
-        } else {
-            let mut heroes = hero_scripts(&part.scenarios, &part.scenes);
-            let mut driver = Scripted {
-                policy: &mut labelled,
-                script: &mut heroes,
-                mask: batch.agent_hero.clone(),
-            };
-            rollout(
-                &part.scenes,
-                &batch,
-                dynamics,
-                &mut driver,
-                caches,
-                &rollout_config,
-            )?;
-        }
+        rollout_with_heroes(
+            &part.scenarios,
+            &part.scenes,
+            &batch,
+            dynamics,
+            &mut labelled,
+            caches,
+            &rollout_config,
+        )?;
         let loss = Tensor::cat(labelled.loss, 0).sum();
         Ok(Fit {
             loss,

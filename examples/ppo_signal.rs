@@ -2,8 +2,8 @@
 //! which way does PPO push the acceleration of a car that closes on the one ahead, and how
 //! clearly?
 //!
-//! Collects PPO experience exactly as training does (the run file's data, dynamics, reward and PPO
-//! settings; the checkpoint's policy, sigma and value network) from SCENES long-tail initial
+//! Collects PPO experience exactly as training does (the run file's data, dynamics, reward and
+//! PPO settings; the checkpoint's policy, sigma and value network) from SCENES long-tail initial
 //! states of SCENARIOS/train (default 96), and sorts every alive agent-step by what is around
 //! the agent:
 //! - `closing`: a car ahead in its lane (centre within 1.8 m sideways, 0-100 m ahead) that it

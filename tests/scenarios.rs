@@ -14,10 +14,11 @@ use rtr::geometry::OrientedBox;
 use rtr::map::BoxOnRoad;
 use rtr::scenario::{
     ConcreteScenario, FamilySet, GenerateConfig, LogicalScenario, SamplingContext, ScenarioSet,
-    builtin_families, family_seed, generate_sets, hero_scripts, load_families, sample_scenario,
+    builtin_families, family_seed, generate_sets, load_families, rollout_with_heroes,
+    sample_scenario,
 };
 use rtr::scene::{Scene, SceneBatch};
-use rtr::sim::{ActionLimits, Dynamics, MapCaches, RolloutConfig, Scripted, rollout};
+use rtr::sim::{ActionLimits, Dynamics, MapCaches, RolloutConfig, rollout};
 
 fn stats() -> &'static TrafficStatistics {
     static STATS: OnceLock<TrafficStatistics> = OnceLock::new();
@@ -271,18 +272,15 @@ fn idm_rollout(
     let mut caches = MapCaches::default();
     let dynamics = Dynamics::bicycle(0.5);
     let config = RolloutConfig::default();
-    let result = match scenarios {
-        Some(sc) => {
-            let mut heroes = hero_scripts(sc, scenes);
-            let mut policy = Scripted {
-                policy: &mut idm,
-                script: &mut heroes,
-                mask: batch.agent_hero.clone(),
-            };
-            rollout(scenes, &batch, &dynamics, &mut policy, &mut caches, &config)
-        }
-        None => rollout(scenes, &batch, &dynamics, &mut idm, &mut caches, &config),
-    };
+    let result = rollout_with_heroes(
+        scenarios.unwrap_or_default(),
+        scenes,
+        &batch,
+        &dynamics,
+        &mut idm,
+        &mut caches,
+        &config,
+    );
     (result.unwrap(), batch)
 }
 

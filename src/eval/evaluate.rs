@@ -21,9 +21,9 @@ use super::realism::{RealismTally, agent_tally};
 use super::sets::{EvalScenes, EvalSet};
 use super::tally::{logged_features, simulated_features, tally_rollout};
 use crate::error::Result;
-use crate::scenario::hero_scripts;
+use crate::scenario::rollout_with_heroes;
 use crate::scene::{Scene, SceneBatch};
-use crate::sim::{Dynamics, MapCaches, RolloutConfig, Scripted, rollout};
+use crate::sim::{Dynamics, MapCaches, RolloutConfig};
 
 /// How a set is evaluated.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -286,18 +286,21 @@ fn rollout_group(
         early_termination: false,
     };
     let mut learned = policy.policy(&scenes, &batch, noise);
-    let out = if set.scenarios.is_empty() {
-        rollout(&scenes, &batch, dynamics, &mut *learned, caches, &config)?
+    // Recorded sets have no scenarios; generated ones one per scene.
+    let scenarios: Vec<_> = if set.scenarios.is_empty() {
+        Vec::new()
     } else {
-        let scenarios: Vec<_> = indices.iter().map(|&k| &set.scenarios[k]).collect();
-        let mut heroes = hero_scripts(&scenarios, &scenes);
-        let mut driver = Scripted {
-            policy: &mut *learned,
-            script: &mut heroes,
-            mask: batch.agent_hero.clone(),
-        };
-        rollout(&scenes, &batch, dynamics, &mut driver, caches, &config)?
+        indices.iter().map(|&k| &set.scenarios[k]).collect()
     };
+    let out = rollout_with_heroes(
+        &scenarios,
+        &scenes,
+        &batch,
+        dynamics,
+        &mut *learned,
+        caches,
+        &config,
+    )?;
     Ok((batch, out))
 }
 

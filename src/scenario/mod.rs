@@ -13,6 +13,7 @@ mod hero;
 mod placement;
 mod range;
 mod sample;
+mod scripted_rollout;
 
 pub use behaviour::{Action, Direction, Phase, Trigger};
 pub use catalogue::{
@@ -32,3 +33,4 @@ pub use sample::{
     MAX_ATTEMPTS, SamplingContext, reference_run, sample_scenario, scene_with_reference_future,
     simulate_reference,
 };
+pub use scripted_rollout::rollout_with_heroes;

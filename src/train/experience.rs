@@ -20,11 +20,11 @@ use crate::error::Result;
 use crate::model::{
     ActionDistribution, AgentInput, EncodedLanes, LaneInput, PolicyNetwork, ValueNetwork,
 };
-use crate::scenario::hero_scripts;
+use crate::scenario::rollout_with_heroes;
 use crate::scene::SceneBatch;
 use crate::sim::{
-    Controls, Dynamics, Frame, MapCaches, Observation, Policy, Rollout, RolloutConfig, Scripted,
-    logged_frames, rollout,
+    Controls, Dynamics, Frame, MapCaches, Observation, Policy, Rollout, RolloutConfig,
+    logged_frames,
 };
 
 /// The networks a collection runs (plain-device copies).
@@ -413,24 +413,15 @@ pub fn collect(
     };
     let noise = HostNoise::new(&part.scenes, &part.slots, seed);
     let mut recorder = Recorder::new(nets, &batch, noise, ppo);
-    let out = if part.is_nominal() {
-        rollout(
-            &part.scenes,
-            &batch,
-            dynamics,
-            &mut recorder,
-            caches,
-            &config,
-        )?
-    } else {
-        let mut heroes = hero_scripts(&part.scenarios, &part.scenes);
-        let mut driver = Scripted {
-            policy: &mut recorder,
-            script: &mut heroes,
-            mask: batch.agent_hero.clone(),
-        };
-        rollout(&part.scenes, &batch, dynamics, &mut driver, caches, &config)?
-    };
+    let out = rollout_with_heroes(
+        &part.scenarios,
+        &part.scenes,
+        &batch,
+        dynamics,
+        &mut recorder,
+        caches,
+        &config,
+    )?;
     let frames = rollout_frames(&batch, &out);
     let final_agents = AgentInput::from_frames(&batch, &frames, nets.policy.config());
     recorder.values.push(recorder.value_of(&final_agents));
