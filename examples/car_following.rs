@@ -61,7 +61,19 @@ struct Case {
     leader_brakes: bool,
 }
 
-fn main() -> Result<(), Box<dyn std::error::Error>> {
+// Errors print as their message (Display) with exit status 2, as in the other probes; returning
+// them from `main` would print their Debug form.
+fn main() -> std::process::ExitCode {
+    match run() {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("car_following: {e}");
+            std::process::ExitCode::from(2)
+        }
+    }
+}
+
+fn run() -> Result<(), Box<dyn std::error::Error>> {
     rtr::allocator::tune_for_tensors();
     let args: Vec<String> = std::env::args().skip(1).collect();
     let options = ["--idm", "--kicks", "--approached"];
