@@ -1,0 +1,55 @@
+#!/usr/bin/env bash
+# Trains the main comparison's models from their run files and writes each as the weight
+# average of its run's last six checkpoints into models/<method>_main (policy.bpk, config.toml,
+# averaged.json, and the run's curves.csv; the cards are written by hand from these).
+#
+#   cargo build --release && target/release/rtr scenarios generate --out runs/scenarios
+#   experiments/main/models.sh                  # every method, about 2.8 h alone on 2 cores
+#   experiments/main/models.sh rtr bc_rl        # some of them
+#
+# Training is deterministic on the Flex CPU backend: a rerun writes the same weights.
+# Runs go to runs/main_models/<method>; if one is already there, `rtr train` stops and says so
+# (delete it, or continue it by hand with --resume).
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+rtr=target/release/rtr
+
+# Runs a run file into runs/main_models/<name>, then averages the given checkpoints.
+train_and_average() {
+    local name=$1 config=$2 extra=$3
+    shift 3
+    local run=runs/main_models/$name out=models/${name}_main
+    # shellcheck disable=SC2086 # $extra is a list of flags
+    $rtr train --config "$config" --out "$run" $extra
+    local sources=()
+    for i in "$@"; do sources+=(--checkpoint "$run/checkpoints/iter-000$i"); done
+    rm -rf "$out.tmp"
+    $rtr model average "${sources[@]}" --out "$out.tmp"
+    cp "$run/curves.csv" "$out.tmp/"
+    [ -f "$out/CARD.md" ] && cp "$out/CARD.md" "$out.tmp/"
+    rm -rf "$out" && mv "$out.tmp" "$out"
+}
+
+# BC and IL: 432 optimizer steps, checkpoints every 25 (kept) and the final one.
+supervised=(432 425 400 375 350 325)
+# PPO methods: 108 iterations, a checkpoint every 9.
+ppo=(108 099 090 081 072 063)
+ppo_flags="--scenarios runs/scenarios --keep-checkpoints 6"
+
+methods=("$@")
+known=(il bc rtr bc_rl rl rl_shaped)
+[ ${#methods[@]} -eq 0 ] && methods=("${known[@]}")
+for m in "${methods[@]}"; do # every name checked before hours of training start
+    [[ " ${known[*]} " == *" $m "* ]] || {
+        echo "models.sh: unknown method '$m' (expected one of: ${known[*]})" >&2
+        exit 2
+    }
+done
+for m in "${methods[@]}"; do
+    case $m in
+    il) train_and_average il experiments/recipe/steer_feedforward/il_ff.toml "--keep-checkpoints 20" "${supervised[@]}" ;;
+    bc) train_and_average bc experiments/recipe/steer_feedforward/bc_ff.toml "--keep-checkpoints 20" "${supervised[@]}" ;;
+    rtr) train_and_average rtr experiments/recipe/ppo_credit/rtr_accel_motion_batch64.toml "$ppo_flags" "${ppo[@]}" ;;
+    bc_rl | rl | rl_shaped) train_and_average "$m" "experiments/main/ppo_recipe/$m.toml" "$ppo_flags" "${ppo[@]}" ;;
+    esac
+done
