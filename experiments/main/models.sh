@@ -13,6 +13,10 @@
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 rtr=target/release/rtr
+[ -x "$rtr" ] || {
+    echo "models.sh: $rtr not found; build it first with: cargo build --release" >&2
+    exit 2
+}
 
 # Runs a run file into runs/main_models/<name>, then averages the given checkpoints.
 train_and_average() {
@@ -45,6 +49,11 @@ for m in "${methods[@]}"; do # every name checked before hours of training start
         exit 2
     }
 done
+# The PPO methods draw long-tail scenarios; BC and IL train on the recordings alone.
+if [[ " ${methods[*]} " =~ \ (rtr|bc_rl|rl|rl_shaped)\  ]] && [ ! -d runs/scenarios/train ]; then
+    echo "models.sh: runs/scenarios/train not found; draw the scenarios first with: $rtr scenarios generate --out runs/scenarios" >&2
+    exit 2
+fi
 for m in "${methods[@]}"; do
     case $m in
     il) train_and_average il experiments/recipe/steer_feedforward/il_ff.toml "--keep-checkpoints 20" "${supervised[@]}" ;;
