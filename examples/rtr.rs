@@ -3,11 +3,11 @@
 //! 1. Loads the shipped real A9 recording and its OpenDRIVE map and cuts them into scenes.
 //! 2. Draws the long-tail training / evaluation / OOD scenario sets (or reuses them).
 //! 3. Trains a short run to show the closed loop at work: by default a 6-iteration RTR
-//!    fine-tune of the shipped IL model (`experiments/recipe/final/demo_rtr.toml`); any run file
-//!    with `--run-file`.
-//! 4. Evaluates it, the converged models of the main comparison in `models/` (BC, IL, RL,
-//!    RL-Shaped, BC+RL, RTR; issue 18's recipe with the lane steering feed-forward) and the
-//!    IDM reference driver on the nominal (real A9 test split), long-tail and OOD sets.
+//!    fine-tune of the shipped IL model with the main RTR's PPO stage
+//!    (`experiments/recipe/final/demo_rtr.toml`); any run file with `--run-file`.
+//! 4. Evaluates it, the main comparison's models (`models/{bc,il,rl,rl_shaped,bc_rl,rtr}_main`,
+//!    each the weight average of its run's last six checkpoints; `experiments/main/results.md`)
+//!    and the IDM reference driver on the nominal (real A9 test split), long-tail and OOD sets.
 //! 5. Prints the paper's table and its headline (RTR against IL on long-tail collisions, with
 //!    nominal realism held) as these models measure it, and writes `results.json`, `table.md`
 //!    and the figures.
@@ -26,19 +26,19 @@ use rtr::eval::{
 use rtr::scenario::{GenerateConfig, builtin_families, generate_sets, load_families};
 use rtr::train::TrainConfig;
 
-/// The main comparison's converged models (issue 18's recipe), in table order.
+/// The main comparison's models (`experiments/main/results.md`), in table order.
 const COMPARISON: [&str; 6] = [
-    "bc_ff",
-    "il_ff",
-    "rl_ff",
-    "rl_shaped_ff",
-    "bc_rl_ff",
-    "rtr_ff",
+    "bc_main",
+    "il_main",
+    "rl_main",
+    "rl_shaped_main",
+    "bc_rl_main",
+    "rtr_main",
 ];
 
 #[derive(Parser)]
 #[command(
-    about = "rtr end-to-end demo: a short training run, then the converged models and IDM evaluated"
+    about = "rtr end-to-end demo: a short training run, then the main comparison's models and IDM evaluated"
 )]
 struct Args {
     /// Folder for runs, scenarios, the table and the figures.
@@ -157,7 +157,7 @@ fn run(args: Args) -> rtr::Result<()> {
             .position(|n| n.ends_with(folder))
             .map(|k| &results[k])
     };
-    if let (Some(il), Some(rtr)) = (find("models/il_ff"), find("models/rtr_ff")) {
+    if let (Some(il), Some(rtr)) = (find("models/il_main"), find("models/rtr_main")) {
         println!("{}", headline(il, rtr));
     }
     let written = write_study(&args.out, &entries, &results, &scenes, &device)?;

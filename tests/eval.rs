@@ -187,7 +187,11 @@ fn sampled_realism_repeats_with_its_seed_and_is_a_likelihood() {
 
 #[test]
 fn every_shipped_model_loads_with_its_method_and_card() {
-    let models = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models");
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let models = root.join("models");
+    let main_table = std::fs::read_to_string(root.join("experiments/main/results.json"))
+        .expect("experiments/main/results.json");
+    let main_table: serde_json::Value = serde_json::from_str(&main_table).expect("JSON");
     let expected = [
         ("bc", "BC"),
         ("il", "IL"),
@@ -197,10 +201,26 @@ fn every_shipped_model_loads_with_its_method_and_card() {
         ("rtr", "RTR"),
     ];
     for (folder, method) in expected {
-        let dir = models.join(folder);
-        let policy = rtr::eval::TrainedPolicy::load(&dir, &cpu()).expect("loads");
-        assert_eq!(policy.method, method);
-        let card = std::fs::read_to_string(dir.join("CARD.md")).expect("card");
-        assert!(card.contains(&format!("experiments/main/small/{folder}.toml")));
+        // The small-budget model, then the main comparison's (`experiments/main/results.md`).
+        let small = models.join(folder);
+        let main = models.join(format!("{folder}_main"));
+        for (dir, table) in [
+            (&small, "experiments/main/small/results.json"),
+            (&main, "experiments/main/results.json"),
+        ] {
+            let policy = rtr::eval::TrainedPolicy::load(dir, &cpu())
+                .unwrap_or_else(|e| panic!("{}: {e}", dir.display()));
+            assert_eq!(policy.method, method, "{}", dir.display());
+            let card = std::fs::read_to_string(dir.join("CARD.md")).expect("card");
+            assert!(card.contains(table), "{} cites {table}", dir.display());
+        }
+        // The main table's row of this method was measured on exactly this model.
+        assert_eq!(
+            main_table["checkpoints"][method].as_str(),
+            Some(format!("models/{folder}_main/policy.bpk").as_str()),
+            "{method}"
+        );
+        let small_card = std::fs::read_to_string(small.join("CARD.md")).expect("card");
+        assert!(small_card.contains(&format!("experiments/main/small/{folder}.toml")));
     }
 }
