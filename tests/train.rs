@@ -383,6 +383,40 @@ fn a_reference_with_sigma_from_the_logs_starts_at_zero_kl() {
     assert!(raw > 0.1, "{raw}");
 }
 
+/// KL-L with the warm start itself as reference (`[reference] init = true`), warm-started as
+/// the main PPO stage is (relative-motion inputs added, sigma from the logs x 2.32): the first
+/// KL is zero, the KL grows as the policy moves, and a killed run resumes to the uninterrupted
+/// run's curves, so the reference is rebuilt the same.
+#[test]
+fn the_warm_start_as_reference_starts_at_zero_kl_and_resumes() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let warm = reference_policy(dir.path());
+    // The first line goes into tiny's [model] section.
+    let sections = format!(
+        "agent_edge_motion = true\n[init]\npolicy = \"{warm}\"\nstd_from_logs = true\n\
+         std_scale = [2.32, 1.0]\nadd_agent_edge_motion = true\nagent_edge_motion_scale = 0.0\n\
+         [reference]\ninit = true\nweight = 1.0"
+    );
+    let config = || {
+        let mut c = tiny("KL-L", "alpha = 0.5", &sections);
+        c.optimizer.epochs = 3;
+        c.ppo.value_warmup_iterations = 0;
+        c
+    };
+    let whole = train(config(), &dir.path().join("whole"), false, None);
+    assert!(whole[0].kl.abs() < 1e-6, "first KL {}", whole[0].kl);
+    let last = whole.last().expect("rows").kl;
+    assert!(
+        last > 1e-6,
+        "the policy moved away from its reference: KL {last}"
+    );
+
+    let parts = dir.path().join("parts");
+    train(config(), &parts, false, Some(1));
+    let resumed = train(config(), &parts, true, None);
+    assert_eq!(without_time(&resumed), without_time(&whole));
+}
+
 fn without_time(rows: &[CurveRow]) -> Vec<CurveRow> {
     rows.iter()
         .map(|r| CurveRow {
@@ -1332,4 +1366,36 @@ fn correlated_exploration_holds_each_agents_noise_over_steps() {
             );
         }
     }
+}
+
+/// The warm start's sigma from the logs is set through the action head's output bias: every
+/// parameter stays trained, as after loading a checkpoint (the bias was once left out, so a
+/// resumed run trained what the uninterrupted one froze).
+#[test]
+fn sigma_from_the_logs_leaves_every_parameter_trained() {
+    struct Untracked(Vec<String>);
+    impl burn::module::ModuleVisitor for Untracked {
+        fn visit_float<const D: usize>(
+            &mut self,
+            p: &burn::module::Param<burn::prelude::Tensor<D>>,
+        ) {
+            if !(p.is_require_grad() && p.val().is_require_grad()) {
+                self.0.push(format!("{:?}", p.val().dims()));
+            }
+        }
+    }
+    let dir = tempfile::tempdir().expect("temp dir");
+    let file = reference_policy(dir.path());
+    let config = tiny("IL", "", "");
+    #[allow(deprecated)]
+    let device = burn::prelude::Device::ndarray().autodiff();
+    let loaded = rtr::train::checkpoint::load_policy(Path::new(&file), &config.model, &device)
+        .expect("load");
+    let mut untracked = Untracked(Vec::new());
+    loaded.visit(&mut untracked);
+    assert!(untracked.0.is_empty(), "loaded: {:?}", untracked.0);
+    loaded
+        .with_constant_std([0.86, 0.004])
+        .visit(&mut untracked);
+    assert!(untracked.0.is_empty(), "with sigma set: {:?}", untracked.0);
 }

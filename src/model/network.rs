@@ -61,23 +61,16 @@ impl Mlp {
                     .unwrap_or(0.0)
             })
             .collect();
-        // Rebuilt from their values, so the new weights are leaves like freshly loaded ones
-        // (an autodiff op's output cannot become a tracked parameter).
-        let reset = |t: Tensor<2>, f: &dyn Fn(Tensor<2>) -> Tensor<2>| {
-            let (tracked, device) = (t.is_require_grad(), t.device());
-            let out = Tensor::<2>::from_data(f(t.detach()).into_data(), &device);
-            if tracked { out.require_grad() } else { out }
-        };
         let weight = last.weight.map(|w| {
             let keep = Tensor::<1>::from_floats(keep.as_slice(), &w.device()).reshape([1, width]);
-            reset(w, &|w| w * keep.clone())
+            rebuilt_leaf(w, |w| w * keep.clone())
         });
         let bias = last.bias.map(|bias| {
             bias.map(|b| {
                 let device = b.device();
-                let keep = Tensor::<1>::from_floats(keep.as_slice(), &device).reshape([1, width]);
-                let set = Tensor::<1>::from_floats(set.as_slice(), &device).reshape([1, width]);
-                reset(b.reshape([1, width]), &|b| b * keep.clone() + set.clone()).reshape([width])
+                let keep = Tensor::<1>::from_floats(keep.as_slice(), &device);
+                let set = Tensor::<1>::from_floats(set.as_slice(), &device);
+                rebuilt_leaf(b, |b| b * keep.clone() + set.clone())
             })
         });
         self.layers.push(Linear { weight, bias });
@@ -94,6 +87,16 @@ impl Mlp {
         }
         x
     }
+}
+
+/// `f` of a parameter's values as a new leaf tensor, tracked if the parameter was: an autodiff
+/// op's output cannot become a trained parameter. Asked of the parameter itself: a reshaped
+/// copy answers that it is not tracked, which once froze the output bias of every policy given
+/// the sigma from the logs (test `sigma_from_the_logs_leaves_every_parameter_trained`).
+fn rebuilt_leaf<const D: usize>(t: Tensor<D>, f: impl Fn(Tensor<D>) -> Tensor<D>) -> Tensor<D> {
+    let (tracked, device) = (t.is_require_grad(), t.device());
+    let out = Tensor::<D>::from_data(f(t.detach()).into_data(), &device);
+    if tracked { out.require_grad() } else { out }
 }
 
 /// Parameters of one network, by component (`rtr model info`).

@@ -339,7 +339,15 @@ impl Default for ShapingConfig {
 #[serde(deny_unknown_fields)]
 pub struct ReferenceConfig {
     /// A policy checkpoint (`policy.bpk`) of the same model config, relative to the run file.
-    pub checkpoint: PathBuf,
+    /// Exactly one of `checkpoint` and `init` names the reference.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub checkpoint: Option<PathBuf>,
+    /// The reference is the warm start itself, built as `[init]` builds it (relative-motion
+    /// inputs added, sigma from the logs x `init.std_scale`), so the KL starts at zero however
+    /// the warm start was adapted for PPO. A plain checkpoint cannot be: it has neither the
+    /// added inputs nor the scaled sigma.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub init: bool,
     /// Weight of the KL term (loss weight for KL-L, reward scale for KL-R).
     #[serde(default = "default_one")]
     pub weight: f64,
@@ -588,11 +596,13 @@ impl TrainConfig {
     pub fn from_toml_file(path: &Path) -> Result<Self> {
         let text = crate::io::read_text(path)?;
         let mut config = Self::from_toml_str(&text, &path.display().to_string())?;
-        if let Some(reference) = config.reference.as_mut()
-            && reference.checkpoint.is_relative()
+        if let Some(checkpoint) = config
+            .reference
+            .as_mut()
+            .and_then(|r| r.checkpoint.as_mut())
+            && checkpoint.is_relative()
         {
-            let base = path.parent().unwrap_or(Path::new("."));
-            reference.checkpoint = base.join(&reference.checkpoint);
+            *checkpoint = path.parent().unwrap_or(Path::new(".")).join(&*checkpoint);
         }
         if let Some(dynamics) = config.dynamics.as_mut() {
             if dynamics.is_relative() {
@@ -794,11 +804,28 @@ impl TrainConfig {
             (None, true) => {
                 return fail(
                     "reference",
-                    "KL-L and KL-R need [reference] checkpoint = \"<frozen IL policy.bpk>\"",
+                    "KL-L and KL-R need [reference] checkpoint = \"<frozen IL policy.bpk>\" \
+                     or init = true (the warm start)",
                 );
             }
             (Some(r), true) if !(r.weight.is_finite() && r.weight >= 0.0) => {
                 return fail("reference.weight", "expected a finite weight >= 0");
+            }
+            (Some(r), true) if r.checkpoint.is_some() == r.init => {
+                return fail(
+                    "reference",
+                    "expected exactly one of checkpoint = \"<frozen IL policy.bpk>\" and \
+                     init = true (the warm start)",
+                );
+            }
+            (Some(r), true) if r.init && self.init.is_none() => {
+                return fail("reference.init", "needs an [init] warm start to refer to");
+            }
+            (Some(r), true) if r.init && r.std_from_logs => {
+                return fail(
+                    "reference.std_from_logs",
+                    "the warm start's sigma is [init]'s (std_from_logs, std_scale); drop it here",
+                );
             }
             _ => {}
         }
@@ -962,6 +989,24 @@ mod tests {
         let err = TrainConfig::from_toml_str("method = \"KL-R\"", "run.toml")
             .expect_err("needs a reference");
         assert!(err.to_string().contains("reference"), "{err}");
+        // The reference is a checkpoint or the warm start, never both or neither.
+        for (reference, field) in [
+            ("weight = 1.0", "reference"),
+            ("checkpoint = \"il.bpk\"\ninit = true", "reference"),
+            ("init = true", "reference.init"),
+        ] {
+            let text = format!("method = \"KL-L\"\n[reference]\n{reference}");
+            let err = TrainConfig::from_toml_str(&text, "run.toml").expect_err(reference);
+            assert!(err.to_string().contains(field), "{reference}: {err}");
+        }
+        let err = TrainConfig::from_toml_str(
+            "method = \"KL-L\"\n[init]\npolicy = \"il\"\n[reference]\ninit = true\nstd_from_logs = true",
+            "run.toml",
+        )
+        .expect_err("the warm start's sigma is [init]'s");
+        assert!(err.to_string().contains("reference.std_from_logs"), "{err}");
+        let ok = "method = \"KL-R\"\n[init]\npolicy = \"il\"\n[reference]\ninit = true";
+        TrainConfig::from_toml_str(ok, "run.toml").expect("the warm start as reference");
         let err = TrainConfig::from_toml_str("method = \"RTR\"\nlamda = 1", "run.toml")
             .expect_err("typo");
         assert!(err.to_string().contains("line 2"), "{err}");

@@ -33,7 +33,7 @@ use rand_chacha::ChaCha8Rng;
 
 use super::agent_dropout::drop_agents;
 use super::checkpoint::{self, LoopState};
-use super::config::{Method, PpoVariant, TrainConfig};
+use super::config::{InitConfig, Method, PpoVariant, TrainConfig};
 use super::curves::{CurveRow, Curves};
 use super::experience::{CollectNetworks, CollectStats, Experience, RewardSettings, collect};
 use super::gradients::{GraphLoss, GraphwiseGradients, clip_global_norm, sum_on_device};
@@ -234,6 +234,37 @@ pub struct IterationTiming {
 /// spread).
 const STD_SCENES: usize = 128;
 
+/// The warm start `init` describes, on `device`: its policy loaded into `blank` (a network of
+/// the run's model config), with the relative-motion inputs added and the sigma from the logs
+/// where it asks for them. Deterministic (the added weights draw from a stream of their own), so
+/// the KL reference built from it again is the same policy.
+fn warm_start(
+    what: &str,
+    init: &InitConfig,
+    blank: PolicyNetwork,
+    data: &TrainingData,
+    config: &TrainConfig,
+    device: &Device,
+) -> Result<PolicyNetwork> {
+    let policy = if init.add_agent_edge_motion {
+        let pose_only = ModelConfig {
+            agent_edge_motion: false,
+            ..config.model.clone()
+        };
+        // Its own stream: the seeded initialisation of the run is unchanged.
+        let mut rng = ChaCha8Rng::seed_from_u64(stream_seed(config.seed, 0, u64::MAX - 1));
+        checkpoint::load_policy(&init.policy_file(), &pose_only, device)?
+            .with_agent_edge_motion(&mut rng, init.agent_edge_motion_scale as f32)
+    } else {
+        checkpoint::load_module(blank, &init.policy_file())?
+    };
+    if init.std_from_logs {
+        std_from_logs(what, init.std_scale, policy, data, config, device)
+    } else {
+        Ok(policy)
+    }
+}
+
 /// `policy` with the sigma of [`crate::train::config::InitConfig::std_from_logs`] times
 /// `scale` per control, said on stderr after `what` (the warm start or the KL reference).
 fn std_from_logs(
@@ -348,32 +379,7 @@ impl<'d> Trainer<'d> {
                         (policy, value)
                     });
                 let policy = match &config.init {
-                    Some(init) => {
-                        let policy = if init.add_agent_edge_motion {
-                            let pose_only = ModelConfig {
-                                agent_edge_motion: false,
-                                ..config.model.clone()
-                            };
-                            // Its own stream: the seeded initialisation above is unchanged.
-                            let mut rng = ChaCha8Rng::seed_from_u64(stream_seed(
-                                config.seed,
-                                0,
-                                u64::MAX - 1,
-                            ));
-                            checkpoint::load_policy(&init.policy_file(), &pose_only, &main)?
-                                .with_agent_edge_motion(
-                                    &mut rng,
-                                    init.agent_edge_motion_scale as f32,
-                                )
-                        } else {
-                            checkpoint::load_module(policy, &init.policy_file())?
-                        };
-                        if init.std_from_logs {
-                            std_from_logs("init", init.std_scale, policy, data, &config, &main)?
-                        } else {
-                            policy
-                        }
-                    }
+                    Some(init) => warm_start("init", init, policy, data, &config, &main)?,
                     None => policy,
                 };
                 (
@@ -393,12 +399,38 @@ impl<'d> Trainer<'d> {
         let reference = match (&config.reference, config.method.uses_reference()) {
             (Some(r), true) => {
                 let device = main.clone().inner();
-                let policy = checkpoint::load_policy(&r.checkpoint, &config.model, &device)?;
-                Some(if r.std_from_logs {
-                    std_from_logs("reference", [1.0, 1.0], policy, data, &config, &device)?
-                } else {
-                    policy
-                })
+                let blank = || PolicyNetwork::new(&config.model, &device);
+                Some(
+                    match (&r.checkpoint, config.init.as_ref().filter(|_| r.init)) {
+                        (Some(file), None) => {
+                            let policy = checkpoint::load_module(blank(), file)?;
+                            if r.std_from_logs {
+                                std_from_logs(
+                                    "reference",
+                                    [1.0, 1.0],
+                                    policy,
+                                    data,
+                                    &config,
+                                    &device,
+                                )?
+                            } else {
+                                policy
+                            }
+                        }
+                        // Rebuilt, not copied, so a resumed run has it too.
+                        (None, Some(init)) => {
+                            warm_start("reference", init, blank(), data, &config, &device)?
+                        }
+                        _ => {
+                            return Err(Error::invalid(
+                                "run file",
+                                "reference",
+                                "expected exactly one of checkpoint = \"<policy.bpk>\" and init = \
+                             true (with an [init] warm start)",
+                            ));
+                        }
+                    },
+                )
             }
             _ => None,
         };
