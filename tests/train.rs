@@ -391,30 +391,44 @@ fn a_reference_with_sigma_from_the_logs_starts_at_zero_kl() {
 fn the_warm_start_as_reference_starts_at_zero_kl_and_resumes() {
     let dir = tempfile::tempdir().expect("temp dir");
     let warm = reference_policy(dir.path());
-    // The first line goes into tiny's [model] section.
-    let sections = format!(
-        "agent_edge_motion = true\n[init]\npolicy = \"{warm}\"\nstd_from_logs = true\n\
-         std_scale = [2.32, 1.0]\nadd_agent_edge_motion = true\nagent_edge_motion_scale = 0.0\n\
-         [reference]\ninit = true\nweight = 1.0"
-    );
-    let config = || {
-        let mut c = tiny("KL-L", "alpha = 0.5", &sections);
-        c.optimizer.epochs = 3;
-        c.ppo.value_warmup_iterations = 0;
-        c
-    };
-    let whole = train(config(), &dir.path().join("whole"), false, None);
-    assert!(whole[0].kl.abs() < 1e-6, "first KL {}", whole[0].kl);
-    let last = whole.last().expect("rows").kl;
-    assert!(
-        last > 1e-6,
-        "the policy moved away from its reference: KL {last}"
-    );
-
-    let parts = dir.path().join("parts");
-    train(config(), &parts, false, Some(1));
-    let resumed = train(config(), &parts, true, None);
-    assert_eq!(without_time(&resumed), without_time(&whole));
+    // Added motion weights at zero (the run files' choice) and drawn (scale 1): the reference
+    // must draw the same ones.
+    for scale in [0.0, 1.0] {
+        // The first line goes into tiny's [model] section.
+        let sections = format!(
+            "agent_edge_motion = true\n[init]\npolicy = \"{warm}\"\nstd_from_logs = true\n\
+             std_scale = [2.32, 1.0]\nadd_agent_edge_motion = true\n\
+             agent_edge_motion_scale = {scale:?}\n[reference]\ninit = true\nweight = 1.0"
+        );
+        let config = || {
+            let mut c = tiny("KL-L", "alpha = 0.5", &sections);
+            c.optimizer.epochs = 3;
+            c.ppo.value_warmup_iterations = 0;
+            c
+        };
+        let whole = train(
+            config(),
+            &dir.path().join(format!("whole{scale}")),
+            false,
+            None,
+        );
+        assert!(
+            whole[0].kl.abs() < 1e-6,
+            "scale {scale}: first KL {}",
+            whole[0].kl
+        );
+        let last = whole.last().expect("rows").kl;
+        assert!(
+            last > 1e-6,
+            "scale {scale}: the policy moved away: KL {last}"
+        );
+        if scale == 0.0 {
+            let parts = dir.path().join("parts");
+            train(config(), &parts, false, Some(1));
+            let resumed = train(config(), &parts, true, None);
+            assert_eq!(without_time(&resumed), without_time(&whole));
+        }
+    }
 }
 
 fn without_time(rows: &[CurveRow]) -> Vec<CurveRow> {

@@ -808,20 +808,20 @@ impl TrainConfig {
                      or init = true (the warm start)",
                 );
             }
-            (Some(r), true) if !(r.weight.is_finite() && r.weight >= 0.0) => {
+            (Some(r), _) if !(r.weight.is_finite() && r.weight >= 0.0) => {
                 return fail("reference.weight", "expected a finite weight >= 0");
             }
-            (Some(r), true) if r.checkpoint.is_some() == r.init => {
+            (Some(r), _) if r.checkpoint.is_some() == r.init => {
                 return fail(
                     "reference",
                     "expected exactly one of checkpoint = \"<frozen IL policy.bpk>\" and \
                      init = true (the warm start)",
                 );
             }
-            (Some(r), true) if r.init && self.init.is_none() => {
+            (Some(r), _) if r.init && self.init.is_none() => {
                 return fail("reference.init", "needs an [init] warm start to refer to");
             }
-            (Some(r), true) if r.init && r.std_from_logs => {
+            (Some(r), _) if r.init && r.std_from_logs => {
                 return fail(
                     "reference.std_from_logs",
                     "the warm start's sigma is [init]'s (std_from_logs, std_scale); drop it here",
@@ -990,21 +990,33 @@ mod tests {
             .expect_err("needs a reference");
         assert!(err.to_string().contains("reference"), "{err}");
         // The reference is a checkpoint or the warm start, never both or neither.
-        for (reference, field) in [
-            ("weight = 1.0", "reference"),
-            ("checkpoint = \"il.bpk\"\ninit = true", "reference"),
-            ("init = true", "reference.init"),
+        for (method, sections, field) in [
+            ("KL-L", "[reference]\nweight = 1.0", "reference"),
+            (
+                "KL-L",
+                "[init]\npolicy = \"il\"\n[reference]\ncheckpoint = \"il.bpk\"\ninit = true",
+                "reference",
+            ),
+            ("KL-R", "[reference]\ninit = true", "reference.init"),
+            // Checked for every method, though only KL-L and KL-R use it.
+            ("RTR", "[reference]\nweight = 1.0", "reference"),
         ] {
-            let text = format!("method = \"KL-L\"\n[reference]\n{reference}");
-            let err = TrainConfig::from_toml_str(&text, "run.toml").expect_err(reference);
-            assert!(err.to_string().contains(field), "{reference}: {err}");
+            let text = format!("method = \"{method}\"\n{sections}");
+            let err = TrainConfig::from_toml_str(&text, "run.toml").expect_err(sections);
+            assert!(
+                err.to_string().contains(&format!("field `{field}`:")),
+                "{sections}: {err}"
+            );
         }
         let err = TrainConfig::from_toml_str(
             "method = \"KL-L\"\n[init]\npolicy = \"il\"\n[reference]\ninit = true\nstd_from_logs = true",
             "run.toml",
         )
         .expect_err("the warm start's sigma is [init]'s");
-        assert!(err.to_string().contains("reference.std_from_logs"), "{err}");
+        assert!(
+            err.to_string().contains("field `reference.std_from_logs`:"),
+            "{err}"
+        );
         let ok = "method = \"KL-R\"\n[init]\npolicy = \"il\"\n[reference]\ninit = true";
         TrainConfig::from_toml_str(ok, "run.toml").expect("the warm start as reference");
         let err = TrainConfig::from_toml_str("method = \"RTR\"\nlamda = 1", "run.toml")

@@ -33,7 +33,7 @@ use rand_chacha::ChaCha8Rng;
 
 use super::agent_dropout::drop_agents;
 use super::checkpoint::{self, LoopState};
-use super::config::{InitConfig, Method, PpoVariant, TrainConfig};
+use super::config::{InitConfig, Method, PpoVariant, ReferenceConfig, TrainConfig};
 use super::curves::{CurveRow, Curves};
 use super::experience::{CollectNetworks, CollectStats, Experience, RewardSettings, collect};
 use super::gradients::{GraphLoss, GraphwiseGradients, clip_global_norm, sum_on_device};
@@ -234,9 +234,42 @@ pub struct IterationTiming {
 /// spread).
 const STD_SCENES: usize = 128;
 
+/// The frozen policy of KL-L / KL-R that `[reference]` names, on `device` (not autodiff): a
+/// checkpoint, or the warm start rebuilt as `[init]` builds it (rebuilt, not copied, so a
+/// resumed run has the same one).
+fn kl_reference(
+    r: &ReferenceConfig,
+    data: &TrainingData,
+    config: &TrainConfig,
+    device: &Device,
+) -> Result<PolicyNetwork> {
+    let blank = || PolicyNetwork::new(&config.model, device);
+    // TrainConfig::validate refuses every other combination; a config built in code gets the
+    // same message here.
+    match (&r.checkpoint, r.init, &config.init, r.std_from_logs) {
+        (Some(file), false, _, calibrate) => {
+            let policy = checkpoint::load_module(blank(), file)?;
+            if calibrate {
+                std_from_logs("reference", [1.0, 1.0], policy, data, config, device)
+            } else {
+                Ok(policy)
+            }
+        }
+        (None, true, Some(init), false) => {
+            warm_start("reference", init, blank(), data, config, device)
+        }
+        _ => Err(Error::invalid(
+            "run file",
+            "field `reference`",
+            "expected exactly one of checkpoint = \"<policy.bpk>\" and init = true (with an \
+             [init] warm start, and without std_from_logs here)",
+        )),
+    }
+}
+
 /// The warm start `init` describes, on `device`: its policy loaded into `blank` (a network of
-/// the run's model config), with the relative-motion inputs added and the sigma from the logs
-/// where it asks for them. Deterministic (the added weights draw from a stream of their own), so
+/// the run's model config; unused when the relative-motion inputs are added, which loads the
+/// pose-only network they extend), with the sigma from the logs where it asks for it. Deterministic (the added weights draw from a stream of their own), so
 /// the KL reference built from it again is the same policy.
 fn warm_start(
     what: &str,
@@ -397,41 +430,7 @@ impl<'d> Trainer<'d> {
             }
         };
         let reference = match (&config.reference, config.method.uses_reference()) {
-            (Some(r), true) => {
-                let device = main.clone().inner();
-                let blank = || PolicyNetwork::new(&config.model, &device);
-                Some(
-                    match (&r.checkpoint, config.init.as_ref().filter(|_| r.init)) {
-                        (Some(file), None) => {
-                            let policy = checkpoint::load_module(blank(), file)?;
-                            if r.std_from_logs {
-                                std_from_logs(
-                                    "reference",
-                                    [1.0, 1.0],
-                                    policy,
-                                    data,
-                                    &config,
-                                    &device,
-                                )?
-                            } else {
-                                policy
-                            }
-                        }
-                        // Rebuilt, not copied, so a resumed run has it too.
-                        (None, Some(init)) => {
-                            warm_start("reference", init, blank(), data, &config, &device)?
-                        }
-                        _ => {
-                            return Err(Error::invalid(
-                                "run file",
-                                "reference",
-                                "expected exactly one of checkpoint = \"<policy.bpk>\" and init = \
-                             true (with an [init] warm start)",
-                            ));
-                        }
-                    },
-                )
-            }
+            (Some(r), true) => Some(kl_reference(r, data, &config, &main.clone().inner())?),
             _ => None,
         };
         // Everything that can refuse the run is loaded before the run folder is written.
