@@ -117,7 +117,7 @@ static DEVICE_RNG: std::sync::Mutex<()> = std::sync::Mutex::new(());
 /// Runs `make` (which should initialise modules and [`Materialise`] them) with `device`'s
 /// global RNG seeded with `seed`, under a process lock, so parallel threads cannot interleave
 /// their draws.
-pub(crate) fn with_seeded_device<T>(device: &Device, seed: u64, make: impl FnOnce() -> T) -> T {
+pub fn with_seeded_device<T>(device: &Device, seed: u64, make: impl FnOnce() -> T) -> T {
     let _guard = DEVICE_RNG.lock().unwrap_or_else(|p| p.into_inner());
     device.seed(seed);
     make()
@@ -269,8 +269,9 @@ fn kl_reference(
 
 /// The warm start `init` describes, on `device`: its policy loaded into `blank` (a network of
 /// the run's model config; unused when the relative-motion inputs are added, which loads the
-/// pose-only network they extend), with the sigma from the logs where it asks for it. Deterministic (the added weights draw from a stream of their own), so
-/// the KL reference built from it again is the same policy.
+/// pose-only network they extend), with the sigma from the logs where it asks for it.
+/// Deterministic (the added weights draw from a stream of their own), so the KL reference
+/// built from it again is the same policy.
 fn warm_start(
     what: &str,
     init: &InitConfig,
