@@ -7,10 +7,10 @@
 #   experiments/main/models.sh                  # every method, about 2.8 h alone on 2 cores
 #   experiments/main/models.sh rtr bc_rl        # some of them
 #
-# Training is deterministic on the Flex CPU backend: a rerun writes the same weights. But the
-# committed PPO models (rtr, bc_rl, rl, rl_shaped) were trained before commit 3d0020c, which
-# made warm-started PPO runs train the action head's output biases: from there on a rerun
-# writes other PPO weights (experiments/main/results.md, "A bug found after this table").
+# Training is deterministic on the Flex CPU backend: a rerun writes the same weights. The
+# committed PPO models (rtr, bc_rl, rl, rl_shaped) were trained after commit 3d0020c, which
+# made warm-started PPO runs train the action head's output biases (experiments/main/results.md,
+# "The bias fix").
 # Runs go to runs/main_models/<method>; if one is already there, `rtr train` stops and says so
 # (delete it, or continue it by hand with --resume).
 set -euo pipefail
