@@ -1,11 +1,14 @@
 #!/usr/bin/env bash
 # Trains the main comparison's models from their run files and writes each as the weight
 # average of its run's last six checkpoints into models/<method>_main (policy.bpk, config.toml,
-# averaged.json, and the run's curves.csv; the cards are written by hand from these).
+# averaged.json, and the run's curves.csv; the cards are written by hand from these). The same
+# PPO stage also trains the ablations' models: KL-L and KL-R (imitation signal,
+# ../imitation_signal/ppo_recipe/) and RL with scene-level PPO (../ppo_ablation/ppo_recipe/).
 #
 #   cargo build --release && target/release/rtr scenarios generate --out runs/scenarios
-#   experiments/main/models.sh                  # every method, about 2.8 h alone on 2 cores
+#   experiments/main/models.sh                  # the six main methods, about 2.8 h alone on 2 cores
 #   experiments/main/models.sh rtr bc_rl        # some of them
+#   experiments/main/models.sh kl_l kl_r rl_scene_level   # the ablations, about 40 min each
 #
 # Training is deterministic on the Flex CPU backend: a rerun writes the same weights. The
 # committed PPO models (rtr, bc_rl, rl, rl_shaped) were trained after commit 3d0020c, which
@@ -44,8 +47,9 @@ ppo=(108 099 090 081 072 063)
 ppo_flags="--scenarios runs/scenarios --keep-checkpoints 6"
 
 methods=("$@")
-known=(il bc rtr bc_rl rl rl_shaped)
-[ ${#methods[@]} -eq 0 ] && methods=("${known[@]}")
+main=(il bc rtr bc_rl rl rl_shaped)
+known=("${main[@]}" kl_l kl_r rl_scene_level)
+[ ${#methods[@]} -eq 0 ] && methods=("${main[@]}")
 for m in "${methods[@]}"; do # every name checked before hours of training start
     [[ " ${known[*]} " == *" $m "* ]] || {
         echo "models.sh: unknown method '$m' (expected one of: ${known[*]})" >&2
@@ -53,7 +57,7 @@ for m in "${methods[@]}"; do # every name checked before hours of training start
     }
 done
 # The PPO methods draw long-tail scenarios; BC and IL train on the recordings alone.
-if [[ " ${methods[*]} " =~ \ (rtr|bc_rl|rl|rl_shaped)\  ]] && [ ! -d runs/scenarios/train ]; then
+if [[ " ${methods[*]} " =~ \ (rtr|bc_rl|rl|rl_shaped|kl_l|kl_r|rl_scene_level)\  ]] && [ ! -d runs/scenarios/train ]; then
     echo "models.sh: runs/scenarios/train not found; draw the scenarios first with: $rtr scenarios generate --out runs/scenarios" >&2
     exit 2
 fi
@@ -63,5 +67,7 @@ for m in "${methods[@]}"; do
     bc) train_and_average bc experiments/recipe/steer_feedforward/bc_ff.toml "--keep-checkpoints 20" "${supervised[@]}" ;;
     rtr) train_and_average rtr experiments/recipe/ppo_credit/rtr_accel_motion_batch64.toml "$ppo_flags" "${ppo[@]}" ;;
     bc_rl | rl | rl_shaped) train_and_average "$m" "experiments/main/ppo_recipe/$m.toml" "$ppo_flags" "${ppo[@]}" ;;
+    kl_l | kl_r) train_and_average "$m" "experiments/imitation_signal/ppo_recipe/$m.toml" "$ppo_flags" "${ppo[@]}" ;;
+    rl_scene_level) train_and_average "$m" experiments/ppo_ablation/ppo_recipe/rl_scene_level.toml "$ppo_flags" "${ppo[@]}" ;;
     esac
 done
