@@ -406,6 +406,43 @@ fn constant_std_sets_sigma_everywhere_and_keeps_the_mean() {
     }
 }
 
+/// The fit's sigma is the policy's own: a policy given a constant sigma reports exactly it,
+/// per control, beside the same mean error as `logged_action_rms`; the sigma does not move
+/// the mean error.
+#[test]
+fn logged_action_fit_reports_the_policys_sigma_beside_its_mean_error() {
+    let device = device(false);
+    let (policy, _) = networks(&device, 9);
+    let scenes = test_scenes(4);
+    let limits = rtr::sim::ActionLimits::default();
+    let fit = |p: &rtr::model::PolicyNetwork| {
+        rtr::train::imitation::logged_action_fit(p, &scenes, &limits, 16, &device).expect("fit")
+    };
+    let (rms, count) =
+        rtr::train::imitation::logged_action_rms(&policy, &scenes, &limits, 16, &device)
+            .expect("rms");
+    for sigma in [[0.5, 0.002], [1.7, 0.01]] {
+        let measured = fit(&policy.clone().with_constant_std(sigma));
+        assert_eq!(measured.count, count);
+        for k in 0..2 {
+            let relative = (measured.sigma_rms[k] - sigma[k]).abs() / sigma[k];
+            assert!(
+                relative < 1e-3,
+                "control {k}: sigma {} for {}",
+                measured.sigma_rms[k],
+                sigma[k]
+            );
+            let moved = (measured.mean_error_rms[k] - rms[k]).abs() / rms[k];
+            assert!(
+                moved < 1e-5,
+                "control {k}: mean error {} against {}",
+                measured.mean_error_rms[k],
+                rms[k]
+            );
+        }
+    }
+}
+
 /// The RMS error of the mean against the logged actions is the sigma that maximises the BC
 /// likelihood among state-independent ones: a tenth more or less scores worse.
 #[test]

@@ -8,7 +8,8 @@
 //!   log.
 //!
 //! - [`logged_action_rms`]: how far the policy's mean is from the logged actions, as BC sees
-//!   them; a warm start's sigma (`[init] std_from_logs`).
+//!   them; a warm start's sigma (`[init] std_from_logs`). [`logged_action_fit`] adds the
+//!   policy's own sigma beside it.
 //!
 //! Both losses return sums; the trainer divides by counts known before the forward pass
 //! ([`imitation_count`], [`BcLabels::count`]) so that losses split across devices add up.
@@ -155,6 +156,32 @@ pub fn logged_action_rms(
     batch: usize,
     device: &Device,
 ) -> Result<([f64; 2], usize)> {
+    let fit = logged_action_fit(policy, scenes, limits, batch, device)?;
+    Ok((fit.mean_error_rms, fit.count))
+}
+
+/// How well a policy's Normal describes the logged actions, per control (m/s^2, rad), over the
+/// labelled agent-steps of the logs as BC sees them ([`logged_action_fit`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LoggedActionFit {
+    /// RMS of mean - logged action: the noise a calibrated sampler would add.
+    pub mean_error_rms: [f64; 2],
+    /// RMS of the policy's own sigma: the noise its samples do add.
+    pub sigma_rms: [f64; 2],
+    /// Labelled agent-steps measured.
+    pub count: usize,
+}
+
+/// [`logged_action_rms`] together with the RMS of the policy's sigma over the same agent-steps:
+/// where the second exceeds the first, the policy's samples scatter wider than its mean misses
+/// the log (data sampled from it is noisier than driving).
+pub fn logged_action_fit(
+    policy: &PolicyNetwork,
+    scenes: &[&Scene],
+    limits: &ActionLimits,
+    batch: usize,
+    device: &Device,
+) -> Result<LoggedActionFit> {
     let mut groups: Vec<Vec<&Scene>> = Vec::new();
     for &scene in scenes {
         let shape = |s: &Scene| (s.history_steps, s.future_steps);
@@ -166,7 +193,7 @@ pub fn logged_action_rms(
             None => groups.push(vec![scene]),
         }
     }
-    let (mut squares, mut count) = ([0.0f64; 2], 0usize);
+    let (mut error_squares, mut sigma_squares, mut count) = ([0.0f64; 2], [0.0f64; 2], 0usize);
     for group in groups {
         let scene_batch = SceneBatch::from_scenes(&group, device)?;
         let n = scene_batch.agent_states.dims()[1];
@@ -177,19 +204,12 @@ pub fn logged_action_rms(
         for (t, (action, mask)) in labels.actions.iter().zip(&labels.mask).enumerate() {
             let frames = logged_frames(&scene_batch, scene_batch.history_steps + t);
             let agents = AgentInput::from_frames(&scene_batch, &frames, config);
-            let mean = policy.forward(&agents, &lanes, &encoded).mean;
-            let error =
-                (mean - action.clone()).powi_scalar(2) * mask.clone().float().unsqueeze_dim::<3>(2);
-            let sums: Vec<f32> = error
-                .sum_dim(0)
-                .sum_dim(1)
-                .into_data()
-                .convert::<f32>()
-                .try_into_vec::<f32>()
-                .unwrap_or_default();
-            for (k, v) in sums.iter().take(2).enumerate() {
-                squares[k] += *v as f64;
-            }
+            let distribution = policy.forward(&agents, &lanes, &encoded);
+            let weight = mask.clone().float().unsqueeze_dim::<3>(2);
+            let error = (distribution.mean - action.clone()).powi_scalar(2);
+            let variance = distribution.log_std.mul_scalar(2.0).exp();
+            add_per_control(&mut error_squares, error * weight.clone());
+            add_per_control(&mut sigma_squares, variance * weight);
         }
         count += labels.count;
     }
@@ -199,5 +219,24 @@ pub fn logged_action_rms(
                 .into(),
         ));
     }
-    Ok((squares.map(|s| (s / count as f64).sqrt()), count))
+    let rms = |squares: [f64; 2]| squares.map(|s| (s / count as f64).sqrt());
+    Ok(LoggedActionFit {
+        mean_error_rms: rms(error_squares),
+        sigma_rms: rms(sigma_squares),
+        count,
+    })
+}
+
+/// Adds the sums over batch and agents of `[B, N, 2]` values to `sums`, per control.
+fn add_per_control(sums: &mut [f64; 2], values: Tensor<3>) {
+    let per_control: Vec<f32> = values
+        .sum_dim(0)
+        .sum_dim(1)
+        .into_data()
+        .convert::<f32>()
+        .try_into_vec::<f32>()
+        .unwrap_or_default();
+    for (k, v) in per_control.iter().take(2).enumerate() {
+        sums[k] += *v as f64;
+    }
 }
