@@ -14,8 +14,7 @@
 # committed PPO models (rtr, bc_rl, rl, rl_shaped) were trained after commit 3d0020c, which
 # made warm-started PPO runs train the action head's output biases (experiments/main/results.md,
 # "The bias fix").
-# Runs go to runs/main_models/<method>; if one is already there, `rtr train` stops and says so
-# (delete it, or continue it by hand with --resume).
+# Runs go to runs/main_models/<method>; rerunning the script continues an interrupted run.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 rtr=target/release/rtr
@@ -24,13 +23,23 @@ rtr=target/release/rtr
     exit 2
 }
 
-# Runs a run file into runs/main_models/<name>, then averages the given checkpoints.
+# Runs a run file into runs/main_models/<name>, then averages the given checkpoints. A finished
+# run is averaged again without training; an interrupted one continues from its newest
+# checkpoint (--resume, to the same result); one stopped before its first checkpoint starts over.
 train_and_average() {
     local name=$1 config=$2 extra=$3
     shift 3
     local run=runs/main_models/$name out=models/${name}_main
-    # shellcheck disable=SC2086 # $extra is a list of flags
-    $rtr train --config "$config" --out "$run" $extra
+    if [ ! -f "$run/policy.bpk" ]; then
+        if [ -e "$run/checkpoints/latest" ]; then
+            extra="$extra --resume"
+        elif [ -d "$run" ]; then
+            echo "models.sh: $run has no checkpoint yet; starting it again" >&2
+            rm -rf "$run"
+        fi
+        # shellcheck disable=SC2086 # $extra is a list of flags
+        $rtr train --config "$config" --out "$run" $extra
+    fi
     local sources=()
     for i in "$@"; do sources+=(--checkpoint "$run/checkpoints/iter-000$i"); done
     rm -rf "$out.tmp"
