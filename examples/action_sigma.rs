@@ -4,7 +4,8 @@
 //! The downstream study (`rtr downstream`) trains a predictor on scenes each policy simulates
 //! with sampled actions, mean + sigma * eps. A policy whose sigma matches the RMS error of its
 //! mean on the logged actions is a calibrated sampler; one whose sigma is larger (the PPO
-//! methods start at 2.32 x that error for exploration) makes noisier data than it drives.
+//! methods start at 2.32 x that error, measured on their training mix, to explore) makes data
+//! noisier than its own driving.
 //! Printed per policy, over the labelled agent-steps of the A9 training split (the downstream
 //! study's initial conditions) seen with the logged history as in BC: the RMS error of the
 //! mean, the RMS of the policy's own sigma, and their ratio, per control.

@@ -174,7 +174,7 @@ pub struct LoggedActionFit {
 
 /// [`logged_action_rms`] together with the RMS of the policy's sigma over the same agent-steps:
 /// where the second exceeds the first, the policy's samples scatter wider than its mean misses
-/// the log (data sampled from it is noisier than driving).
+/// the log, so data sampled from it is noisier than its mean-action driving.
 pub fn logged_action_fit(
     policy: &PolicyNetwork,
     scenes: &[&Scene],
