@@ -5,7 +5,7 @@
 # and the car-following probe of the alpha-0.5 points and IDM.
 #
 #   target/release/rtr sweep --config experiments/sweep/ppo_recipe/rtr.toml --out runs/sweep_pr --scenarios runs/scenarios
-#   cargo build --release --examples && experiments/sweep/ppo_recipe/average.sh
+#   cargo build --release --bins --examples && experiments/sweep/ppo_recipe/average.sh
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
 rtr=target/release/rtr
@@ -14,7 +14,7 @@ sweep=runs/sweep_pr
 out=experiments/sweep/ppo_recipe/averaged
 for tool in "$rtr" "$probe"; do
     [ -x "$tool" ] || {
-        echo "average.sh: $tool not found; build it first with: cargo build --release --examples" >&2
+        echo "average.sh: $tool not found; build it first with: cargo build --release --bins --examples" >&2
         exit 2
     }
 done
