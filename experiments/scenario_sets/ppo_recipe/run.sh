@@ -6,8 +6,8 @@
 # the averages (averaged/) and the final checkpoints (here) on the nominal and long-tail sets,
 # and probes car following.
 #
-#   cargo build --release --examples && target/release/rtr scenarios generate --out runs/scenarios
-#   experiments/scenario_sets/ppo_recipe/run.sh          # about 35 min per set on 2 cores
+#   cargo build --release --bins --examples && target/release/rtr scenarios generate --out runs/scenarios
+#   experiments/scenario_sets/ppo_recipe/run.sh   # 24-26 min a set on 2 cores, Long-tail and Nom+LT longer
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
 rtr=target/release/rtr
@@ -16,7 +16,7 @@ here=experiments/scenario_sets/ppo_recipe
 runs=runs/scenario_sets_pr
 for tool in "$rtr" "$probe"; do
     [ -x "$tool" ] || {
-        echo "run.sh: $tool not found; build it first with: cargo build --release --examples" >&2
+        echo "run.sh: $tool not found; build it first with: cargo build --release --bins --examples" >&2
         exit 2
     }
 done
