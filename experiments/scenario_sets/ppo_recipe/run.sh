@@ -7,7 +7,7 @@
 # and probes car following.
 #
 #   cargo build --release --bins --examples && target/release/rtr scenarios generate --out runs/scenarios
-#   experiments/scenario_sets/ppo_recipe/run.sh   # 24-26 min a set on 2 cores, Long-tail and Nom+LT longer
+#   experiments/scenario_sets/ppo_recipe/run.sh   # 24-32 min a set on 2 cores, Nom+LT 44, Long-tail 56; 3.2 h in all
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
 rtr=target/release/rtr
