@@ -182,6 +182,13 @@ fn same_seed_gives_byte_identical_sets_and_other_seeds_differ() {
     assert!(text.contains(&format!("\"family\": \"{}\"", first.family)));
 }
 
+#[test]
+fn a_family_without_heroes_is_a_lone_target() {
+    let text = GOOD.split("[[heroes]]").next().unwrap();
+    let family = LogicalScenario::from_toml_str(text, "alone.toml").expect("valid");
+    assert!(family.heroes.is_empty());
+}
+
 fn family_error(text: &str) -> String {
     LogicalScenario::from_toml_str(text, "bad.toml")
         .unwrap_err()
@@ -241,8 +248,11 @@ fn invalid_family_files_name_the_file_the_place_and_what_was_expected() {
         ),
         (GOOD.replace("set = \"train\"", "set = \"test\""), "test"),
         (
-            GOOD.split("[[heroes]]").next().unwrap().to_string(),
-            "heroes",
+            GOOD.replace(
+                "station = [250, 300]",
+                "station = [250, 300]\nlateral_offset = [0, 12]",
+            ),
+            "target.lateral_offset",
         ),
         (
             GOOD.replace("preset = \"straight\"", "preset = \"roundabout\""),

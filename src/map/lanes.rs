@@ -133,6 +133,9 @@ pub struct Map {
     pub(super) lanes: Vec<Lane>,
     pub(super) centerlines: CenterlineIndex,
     bounds: ([f64; 2], [f64; 2]),
+    /// The grid cache of on-road queries, made on first use and kept with the map, so every
+    /// rollout on it reuses the tiles filled so far.
+    raster: std::sync::OnceLock<std::sync::Arc<super::raster::RoadRaster>>,
 }
 
 impl Map {
@@ -203,7 +206,17 @@ impl Map {
             centerlines: CenterlineIndex::build(&lanes),
             lanes,
             bounds: (lo, hi),
+            raster: std::sync::OnceLock::new(),
         }
+    }
+
+    /// The map's grid cache of on-road queries at [`super::RASTER_CELL`] (filled lazily).
+    pub fn raster(&self) -> std::sync::Arc<super::raster::RoadRaster> {
+        self.raster
+            .get_or_init(|| {
+                std::sync::Arc::new(super::raster::RoadRaster::new(self, super::RASTER_CELL))
+            })
+            .clone()
     }
 
     pub fn from_xodr_str(text: &str, source_name: &str) -> Result<Map> {

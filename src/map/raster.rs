@@ -7,6 +7,12 @@
 //! grid. So the answer equals the exact one except where a feature narrower than a cell fits
 //! entirely between corners (the last centimetres of a tapering lane; on a lanelet map, the
 //! tip of a gap between two shoulder strips), which the default 0.25 m cell makes negligible.
+//!
+//! The grid is filled lazily in square tiles, each on its first query: a rollout touches the
+//! tiles along its vehicles' paths, a small part of a generated map's bounding box (a 900 m
+//! curve spans millions of cells, and filling them all cost more than the rollouts on it).
+
+use std::sync::OnceLock;
 
 use super::lanes::Map;
 use super::query::{BEYOND_END_RANGE, BoxOnRoad, PointLocation, classify_outline};
@@ -20,17 +26,32 @@ const MIXED: u8 = 3;
 /// Default cell size (m).
 pub const RASTER_CELL: f64 = 0.25;
 
-#[derive(Debug, Clone)]
+/// Cells per tile side: 16 m at the default cell, a few exact queries per metre of road
+/// driven, and clearances up to 32 cells (8 m) inside a tile.
+const TILE: usize = 64;
+
+#[derive(Debug)]
 pub struct RoadRaster {
     origin: [f64; 2],
     cell: f64,
     nx: usize,
     ny: usize,
+    /// Tiles per row.
+    tiles_x: usize,
+    /// Row-major, each filled on first use.
+    tiles: Vec<OnceLock<Tile>>,
+}
+
+/// One filled tile.
+#[derive(Debug)]
+struct Tile {
+    /// Cells per row of this tile (the last column and row of tiles may be narrower).
+    width: usize,
     /// Per cell: ON, BEYOND or OFF when its corners agree, else MIXED.
     cells: Vec<u8>,
-    /// Per cell: Chebyshev distance (in cells) to the nearest cell that is not ON; a box
-    /// whose bounding circle fits inside that clearance is on the road without testing its
-    /// outline.
+    /// Per cell: a lower bound on the Chebyshev distance (in cells) to the nearest cell that is
+    /// not ON (cells outside the tile count as not ON); a box whose bounding circle fits inside
+    /// it is on the road without testing its outline.
     clearance: Vec<u16>,
 }
 
@@ -44,37 +65,70 @@ fn code(l: PointLocation) -> u8 {
 
 impl RoadRaster {
     /// Covers the map's bounds plus the range in which points still count as past a road end.
+    /// Nothing is queried yet.
     pub fn new(map: &Map, cell: f64) -> Self {
         let (min, max) = map.bounds();
         let margin = BEYOND_END_RANGE.min(10.0);
         let origin = [min[0] - margin, min[1] - margin];
         let nx = ((max[0] - min[0] + 2.0 * margin) / cell).ceil().max(1.0) as usize;
         let ny = ((max[1] - min[1] + 2.0 * margin) / cell).ceil().max(1.0) as usize;
-        let corner = |i: usize, j: usize| {
-            code(map.point_location([origin[0] + i as f64 * cell, origin[1] + j as f64 * cell]))
-        };
-        let mut corners = vec![OFF; (nx + 1) * (ny + 1)];
-        for j in 0..=ny {
-            for i in 0..=nx {
-                corners[j * (nx + 1) + i] = corner(i, j);
-            }
-        }
-        let mut cells = vec![MIXED; nx * ny];
-        for j in 0..ny {
-            for i in 0..nx {
-                let at = |di: usize, dj: usize| corners[(j + dj) * (nx + 1) + i + di];
-                let c = at(0, 0);
-                if at(1, 0) == c && at(0, 1) == c && at(1, 1) == c {
-                    cells[j * nx + i] = c;
-                }
-            }
-        }
-        let clearance = chebyshev_clearance(&cells, nx, ny);
+        let (tiles_x, tiles_y) = (nx.div_ceil(TILE), ny.div_ceil(TILE));
         Self {
             origin,
             cell,
             nx,
             ny,
+            tiles_x,
+            tiles: (0..tiles_x * tiles_y).map(|_| OnceLock::new()).collect(),
+        }
+    }
+
+    /// Tiles filled so far.
+    pub fn filled_tiles(&self) -> usize {
+        self.tiles.iter().filter(|t| t.get().is_some()).count()
+    }
+
+    /// The cell holding `p` as (tile, index within the tile), filling its tile; `None` outside
+    /// the grid.
+    fn cell_of(&self, map: &Map, p: [f64; 2]) -> Option<(&Tile, usize)> {
+        let fx = (p[0] - self.origin[0]) / self.cell;
+        let fy = (p[1] - self.origin[1]) / self.cell;
+        if !(fx >= 0.0 && fy >= 0.0 && (fx as usize) < self.nx && (fy as usize) < self.ny) {
+            return None;
+        }
+        let (i, j) = (fx as usize, fy as usize);
+        let (ti, tj) = (i / TILE, j / TILE);
+        let tile = self.tiles[tj * self.tiles_x + ti].get_or_init(|| self.fill(map, ti, tj));
+        Some((tile, (j % TILE) * tile.width + i % TILE))
+    }
+
+    /// Evaluates the exact query at the corners of tile (`ti`, `tj`).
+    fn fill(&self, map: &Map, ti: usize, tj: usize) -> Tile {
+        let (i0, j0) = (ti * TILE, tj * TILE);
+        let width = TILE.min(self.nx - i0);
+        let height = TILE.min(self.ny - j0);
+        let mut corners = vec![OFF; (width + 1) * (height + 1)];
+        for j in 0..=height {
+            for i in 0..=width {
+                corners[j * (width + 1) + i] = code(map.point_location([
+                    self.origin[0] + (i0 + i) as f64 * self.cell,
+                    self.origin[1] + (j0 + j) as f64 * self.cell,
+                ]));
+            }
+        }
+        let mut cells = vec![MIXED; width * height];
+        for j in 0..height {
+            for i in 0..width {
+                let at = |di: usize, dj: usize| corners[(j + dj) * (width + 1) + i + di];
+                let c = at(0, 0);
+                if at(1, 0) == c && at(0, 1) == c && at(1, 1) == c {
+                    cells[j * width + i] = c;
+                }
+            }
+        }
+        let clearance = chebyshev_clearance(&cells, width, height);
+        Tile {
+            width,
             cells,
             clearance,
         }
@@ -82,10 +136,8 @@ impl RoadRaster {
 
     /// Same answer as `map.point_location(p)` (see the module note), fast.
     pub fn point_location(&self, map: &Map, p: [f64; 2]) -> PointLocation {
-        let fx = (p[0] - self.origin[0]) / self.cell;
-        let fy = (p[1] - self.origin[1]) / self.cell;
-        if fx >= 0.0 && fy >= 0.0 && (fx as usize) < self.nx && (fy as usize) < self.ny {
-            match self.cells[fy as usize * self.nx + fx as usize] {
+        if let Some((tile, k)) = self.cell_of(map, p) {
+            match tile.cells[k] {
                 ON => return PointLocation::OnRoad,
                 BEYOND => return PointLocation::BeyondRoadEnd,
                 OFF => return PointLocation::OffRoad,
@@ -99,10 +151,8 @@ impl RoadRaster {
     pub fn box_on_road(&self, map: &Map, b: &OrientedBox) -> BoxOnRoad {
         // Quick accept: every cell within (k - 1) cells (Chebyshev) of the centre's cell is ON,
         // so a disc of radius (k - 1) * cell around the centre lies on the road.
-        let fx = (b.center[0] - self.origin[0]) / self.cell;
-        let fy = (b.center[1] - self.origin[1]) / self.cell;
-        if fx >= 0.0 && fy >= 0.0 && (fx as usize) < self.nx && (fy as usize) < self.ny {
-            let k = self.clearance[fy as usize * self.nx + fx as usize] as f64;
+        if let Some((tile, k)) = self.cell_of(map, b.center) {
+            let k = tile.clearance[k] as f64;
             if (k - 1.0) * self.cell >= b.bounding_radius() {
                 return BoxOnRoad::OnRoad;
             }
@@ -111,8 +161,9 @@ impl RoadRaster {
     }
 }
 
-/// Multi-source breadth-first search from every cell that is not ON (and from outside the
-/// grid) over 8-neighbours, which yields the Chebyshev distance.
+/// Multi-source breadth-first search from every cell that is not ON and from the tile's edge
+/// cells (what lies beyond is not known here) over 8-neighbours, which yields the Chebyshev
+/// distance within the tile, a lower bound of the distance over the whole grid.
 fn chebyshev_clearance(cells: &[u8], nx: usize, ny: usize) -> Vec<u16> {
     let mut dist = vec![u16::MAX; nx * ny];
     let mut queue = std::collections::VecDeque::new();
@@ -176,6 +227,21 @@ mod tests {
             y += 0.53;
         }
         assert!(on > 10_000 && on < n, "{on} of {n} points on the road");
+    }
+
+    #[test]
+    fn only_the_tiles_queried_are_filled() {
+        let map = a9();
+        let raster = RoadRaster::new(&map, RASTER_CELL);
+        assert_eq!(raster.filled_tiles(), 0);
+        let (min, max) = map.bounds();
+        let centre = [(min[0] + max[0]) / 2.0, (min[1] + max[1]) / 2.0];
+        let exact = map.point_location(centre);
+        assert_eq!(raster.point_location(&map, centre), exact);
+        assert_eq!(raster.filled_tiles(), 1);
+        assert_eq!(raster.point_location(&map, centre), exact);
+        assert_eq!(raster.filled_tiles(), 1);
+        assert!(raster.tiles.len() > 50, "{} tiles", raster.tiles.len());
     }
 
     #[test]

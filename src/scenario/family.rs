@@ -50,6 +50,14 @@ pub struct TargetSpec {
     /// Quantile band of the A9 lane speeds (0 = slowest) the target's speed is drawn from.
     #[serde(default = "default_band")]
     pub speed_band: Range,
+    /// Sideways offset from the lane centre (m, positive = left) at the current step; the
+    /// history is a straight drive into that pose. Absent: on the centre line.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lateral_offset: Option<Range>,
+    /// Heading relative to the lane (rad, positive = turned left) held over the history.
+    /// Absent: along the lane.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub heading_error: Option<Range>,
 }
 
 fn default_band() -> Range {
@@ -144,6 +152,8 @@ pub struct LogicalScenario {
     pub target: TargetSpec,
     #[serde(default)]
     pub background: BackgroundSpec,
+    /// Scripted vehicles; none for a target alone on its road.
+    #[serde(default)]
     pub heroes: Vec<HeroSpec>,
 }
 
@@ -294,12 +304,18 @@ impl LogicalScenario {
                 return Err((field(name), format!("{v} m: expected 0 to 2000 m")));
             }
         }
-        if self.heroes.is_empty() {
-            return Err((
-                field("heroes"),
-                "a long-tail scenario needs at least one hero ([[heroes]])".into(),
-            ));
+        if let Some(offset) = &t.lateral_offset {
+            offset
+                .check("target.lateral_offset", -10.0, 10.0)
+                .map_err(|m| (field("target.lateral_offset"), m))?;
         }
+        if let Some(error) = &t.heading_error {
+            error
+                .check("target.heading_error", -1.0, 1.0)
+                .map_err(|m| (field("target.heading_error"), m))?;
+        }
+        // A scenario without heroes is the target alone on its road (and its background): how
+        // the PPO probes pose a lane-keeping task.
         for (h, hero) in self.heroes.iter().enumerate() {
             let name = format!("heroes[{h}]");
             if hero.lane.is_some() == hero.lane_offset.is_some() {

@@ -164,6 +164,17 @@ fn draw(
         vehicle,
         fixed: true,
     };
+    // Drawn only when asked for, so the draws of every other family stay what they were.
+    let target_error = PoseError {
+        lateral: t
+            .lateral_offset
+            .as_ref()
+            .map_or(0.0, |r| sampler.draw("target.lateral_offset", r)),
+        heading: t
+            .heading_error
+            .as_ref()
+            .map_or(0.0, |r| sampler.draw("target.heading_error", r)),
+    };
 
     // Heroes.
     let mut heroes = Vec::new();
@@ -194,13 +205,17 @@ fn draw(
     let steps = ctx.history_steps;
     let mut agents = Vec::with_capacity(planned.len());
     for (i, p) in planned.iter().enumerate() {
-        let states: Vec<Option<[f64; 4]>> = (0..=steps)
-            .map(|k| {
-                let back = p.speed * (steps - k) as f64 * ctx.dt;
-                place(&map, p.lane, p.station - back)
-                    .map(|pl| [pl.x, pl.y, pl.heading, p.speed].map(quantize))
-            })
-            .collect();
+        let states: Vec<Option<[f64; 4]>> = if i == 0 && target_error != PoseError::NONE {
+            target_error.history(&map, p, steps, ctx.dt)
+        } else {
+            (0..=steps)
+                .map(|k| {
+                    let back = p.speed * (steps - k) as f64 * ctx.dt;
+                    place(&map, p.lane, p.station - back)
+                        .map(|pl| [pl.x, pl.y, pl.heading, p.speed].map(quantize))
+                })
+                .collect()
+        };
         if states[steps].is_none() {
             return Err(format!(
                 "agent {i} ({:?}) has no lane {} at station {:.1} m",
@@ -247,6 +262,49 @@ fn draw(
             offroad_agents: Vec::new(),
         },
     })
+}
+
+/// How far the target starts from driving along its lane's centre line.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct PoseError {
+    /// Metres to the left of the centre line.
+    lateral: f64,
+    /// Radians turned left of the lane's heading.
+    heading: f64,
+}
+
+impl PoseError {
+    const NONE: Self = Self {
+        lateral: 0.0,
+        heading: 0.0,
+    };
+
+    /// The vehicle's states when it drove straight, at its speed and with the heading error,
+    /// into the offset pose at the current step (index `steps`).
+    fn history(&self, map: &Map, p: &Planned, steps: usize, dt: f64) -> Vec<Option<[f64; 4]>> {
+        let Some(now) = place(map, p.lane, p.station) else {
+            return vec![None; steps + 1];
+        };
+        let heading = now.heading + self.heading;
+        let (x, y) = (
+            now.x - self.lateral * now.heading.sin(),
+            now.y + self.lateral * now.heading.cos(),
+        );
+        (0..=steps)
+            .map(|k| {
+                let back = p.speed * (steps - k) as f64 * dt;
+                Some(
+                    [
+                        x - back * heading.cos(),
+                        y - back * heading.sin(),
+                        heading,
+                        p.speed,
+                    ]
+                    .map(quantize),
+                )
+            })
+            .collect()
+    }
 }
 
 /// A recorded vehicle of `class` (any lane), for its size.

@@ -12,7 +12,7 @@ use std::sync::Arc;
 use rayon::prelude::*;
 
 use crate::geometry::OrientedBox;
-use crate::map::{BoxOnRoad, Map, PointLocation, RASTER_CELL, RoadRaster};
+use crate::map::{BoxOnRoad, Map, PointLocation, RoadRaster};
 
 /// A map with its query cache.
 #[derive(Debug, Clone)]
@@ -21,9 +21,9 @@ pub struct MapCache {
     pub raster: Arc<RoadRaster>,
 }
 
-/// Road rasters kept at once. A generated long-tail map's raster takes tens of MB (0.25 m
-/// cells over its bounding box), and a training run visits hundreds of maps per device: kept
-/// forever they took 17-23 GB and got a run killed. A batch touches at most a few dozen maps.
+/// Maps whose cache entries are kept at once (a batch touches at most a few dozen). The raster
+/// itself lives with its map ([`Map::raster`]) and is filled only where vehicles drive, so an
+/// entry dropped here loses nothing.
 const MAX_CACHED_MAPS: usize = 16;
 
 /// One [`MapCache`] per distinct map of recent batches (scenes of one recording share one); the
@@ -51,7 +51,7 @@ impl MapCaches {
             (
                 MapCache {
                     map: map.clone(),
-                    raster: Arc::new(RoadRaster::new(map, RASTER_CELL)),
+                    raster: map.raster(),
                 },
                 0,
             )

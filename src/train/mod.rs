@@ -12,7 +12,8 @@
 //! - [`gradients`]: global-norm clipping and multi-device sums; [`shards`]: scenes bucketed by
 //!   size and spread over worker devices;
 //! - [`checkpoint`], [`curves`]: atomic checkpoints and CSV curves;
-//! - [`trainer`]: the loop; [`bench`]: throughput.
+//! - [`trainer`]: the loop; [`bench`]: throughput; [`probe`]: PPO probe tasks with known
+//!   answers.
 
 pub mod agent_dropout;
 pub mod bench;
@@ -25,6 +26,7 @@ pub mod gradients;
 pub mod imitation;
 pub mod perturbation;
 pub mod ppo;
+pub mod probe;
 pub mod session;
 pub mod shaping;
 pub mod shards;

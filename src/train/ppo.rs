@@ -94,6 +94,40 @@ impl AdvantageScale {
         mean: 0.0,
         std: 1.0,
     };
+
+    /// The mean and standard deviation of `advantages` (the alive agent-steps of a minibatch);
+    /// the identity for fewer than two.
+    pub fn of(advantages: &[f32]) -> Self {
+        if advantages.len() < 2 {
+            return Self::IDENTITY;
+        }
+        let n = advantages.len() as f64;
+        let mean = advantages.iter().map(|&a| a as f64).sum::<f64>() / n;
+        let var = advantages
+            .iter()
+            .map(|&a| (a as f64 - mean).powi(2))
+            .sum::<f64>()
+            / n;
+        Self {
+            mean,
+            std: var.sqrt(),
+        }
+    }
+
+    /// The alive entries of `advantages` (`[B, N, T]`, `alive` its mask) on the host.
+    pub fn alive_values(advantages: Tensor<3>, alive: Tensor<3, Bool>) -> Vec<f32> {
+        let a: Vec<f32> = advantages
+            .into_data()
+            .convert::<f32>()
+            .try_into_vec()
+            .unwrap_or_default();
+        let m: Vec<bool> = alive.into_data().try_into_vec().unwrap_or_default();
+        a.iter()
+            .zip(&m)
+            .filter(|(_, m)| **m)
+            .map(|(a, _)| *a)
+            .collect()
+    }
 }
 
 /// Re-evaluates the stored observations of `exp` with `policy` and `value` and forms the

@@ -722,31 +722,11 @@ impl<'d> Trainer<'d> {
                 norm.ppo += alive.clone().int().sum().into_scalar::<i64>() as usize;
                 norm.kl += e.stats.agent_steps;
                 if config.ppo.normalize_advantages {
-                    let a: Vec<f32> = adv
-                        .into_data()
-                        .convert::<f32>()
-                        .try_into_vec()
-                        .unwrap_or_default();
-                    let m: Vec<bool> = alive.into_data().try_into_vec().unwrap_or_default();
-                    advantages.extend(a.iter().zip(&m).filter(|(_, m)| **m).map(|(a, _)| *a));
+                    advantages.extend(AdvantageScale::alive_values(adv, alive));
                 }
             }
         }
-        let scale = if advantages.len() > 1 {
-            let n = advantages.len() as f64;
-            let mean = advantages.iter().map(|&a| a as f64).sum::<f64>() / n;
-            let var = advantages
-                .iter()
-                .map(|&a| (a as f64 - mean).powi(2))
-                .sum::<f64>()
-                / n;
-            AdvantageScale {
-                mean,
-                std: var.sqrt(),
-            }
-        } else {
-            AdvantageScale::IDENTITY
-        };
+        let scale = AdvantageScale::of(&advantages);
         let rl_weight = match method {
             Method::Rl | Method::RlShaped => 1.0,
             _ => config.lambda,

@@ -46,6 +46,12 @@ enum Command {
         #[command(subcommand)]
         command: commands::scenarios::ScenariosCommand,
     },
+    /// Probe tasks with known answers: does PPO learn to brake, to recover a lane, and does
+    /// its gradient reach the right control?
+    Probe {
+        #[command(subcommand)]
+        command: commands::probe::ProbeCommand,
+    },
     /// Train a policy from a run file (experiments/*/*.toml): BC, IL, RL, RL-Shaped, BC+RL,
     /// RTR, KL-L or KL-R. Writes OUT/curves.csv, OUT/config.toml and OUT/checkpoints/.
     Train(commands::train::TrainArgs),
@@ -120,6 +126,7 @@ fn run(cli: Cli) -> rtr::Result<()> {
         Command::Sweep(args) => commands::sweep::run(args),
         Command::Downstream(args) => commands::downstream::run(args),
         Command::Curate(args) => commands::curate::run(args),
+        Command::Probe { command } => commands::probe::run(command),
         Command::Sim2real(args) => commands::sim2real::run(args),
         Command::Recordings { command } => commands::recordings::run(command),
     }

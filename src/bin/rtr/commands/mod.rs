@@ -8,6 +8,7 @@ pub mod downstream;
 pub mod eval;
 pub mod map;
 pub mod model;
+pub mod probe;
 pub mod recordings;
 pub mod render;
 pub mod scenarios;

@@ -1,0 +1,160 @@
+//! `rtr probe ppo`: PPO on tasks whose right behaviour is known (brake, recover, credit).
+
+use std::path::PathBuf;
+
+use clap::{Args, Subcommand};
+
+use rtr::model::ModelConfig;
+use rtr::train::probe::{ProbeSettings, ProbeTask, TaskReport, run_probes};
+use rtr::train::{InitConfig, TrainConfig};
+use rtr::{Error, Result};
+
+use super::args::{DataArgs, count};
+
+#[derive(Subcommand)]
+pub enum ProbeCommand {
+    /// Train PPO alone on each probe task from a warm start and report the held-out infraction
+    /// rate and training reward before and after (brake, recover), and the direction of the
+    /// PPO gradient on each control (credit).
+    Ppo(PpoProbeArgs),
+}
+
+#[derive(Args)]
+pub struct PpoProbeArgs {
+    /// Comma-separated tasks: brake, recover, credit.
+    #[arg(long, default_value = "brake,recover,credit", value_delimiter = ',')]
+    tasks: Vec<String>,
+    /// The policy PPO starts from (a model folder or policy.bpk with its run's config.toml);
+    /// its sigma is measured on the logs (`init.std_from_logs`).
+    #[arg(long, default_value = "models/il_ff", conflicts_with = "small")]
+    warm_start: PathBuf,
+    /// Start from a fresh small network (the tests' size) instead of a warm start.
+    #[arg(long)]
+    small: bool,
+    /// A run file with method = "RL" whose PPO, optimizer, model and init sections the probes
+    /// use (its data and alpha are replaced); default: the trainer's defaults with the warm
+    /// start above.
+    #[arg(long, conflicts_with_all = ["small"])]
+    config: Option<PathBuf>,
+    /// PPO iterations per trained task (each of the run file's `ppo.batch` initial states).
+    #[arg(long, default_value_t = 40, value_parser = count(1, 100_000))]
+    iterations: usize,
+    /// Training scenarios drawn per task.
+    #[arg(long, default_value_t = 128, value_parser = count(1, 100_000))]
+    train_scenarios: usize,
+    /// Held-out scenarios the infraction rate and reward are measured on.
+    #[arg(long, default_value_t = 128, value_parser = count(2, 100_000))]
+    eval_scenarios: usize,
+    /// Seed of the scenario draws.
+    #[arg(long, default_value_t = 7)]
+    scenario_seed: u64,
+    /// Keep each trained task's run folder (checkpoints, curves.csv) as OUT/<task>.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Print one JSON object {"tasks": [...]} instead of a table.
+    #[arg(long)]
+    json: bool,
+    #[command(flatten)]
+    data: DataArgs,
+}
+
+pub fn run(command: ProbeCommand) -> Result<()> {
+    let ProbeCommand::Ppo(args) = command;
+    let tasks = args
+        .tasks
+        .iter()
+        .map(|t| {
+            ProbeTask::parse(t.trim()).map_err(|e| Error::InvalidArgument(format!("--tasks: {e}")))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let base = base_config(&args)?;
+    if let Some(out) = &args.out {
+        rtr::io::check_output(out, rtr::io::OutputKind::Folder, "--out")?;
+    }
+    let settings = ProbeSettings {
+        base,
+        iterations: args.iterations,
+        train_scenarios: args.train_scenarios,
+        eval_scenarios: args.eval_scenarios,
+        scenario_seed: args.scenario_seed,
+        out: args.out.clone(),
+    };
+    let dataset = args.data.load()?;
+    let reports = run_probes(&tasks, &settings, &dataset, &|line| eprintln!("{line}"))?;
+    if args.json {
+        let json = serde_json::json!({ "tasks": reports });
+        println!("{json}");
+    } else {
+        println!("{}", table(&reports));
+    }
+    Ok(())
+}
+
+/// The run file the probes train with.
+fn base_config(args: &PpoProbeArgs) -> Result<TrainConfig> {
+    if let Some(path) = &args.config {
+        rtr::io::check_input_file(path, "--config")?;
+        return TrainConfig::from_toml_file(path);
+    }
+    let mut config = TrainConfig::from_toml_str("method = \"RL\"\n", "the probes' default run")?;
+    if args.small {
+        config.model = ModelConfig::small();
+        return Ok(config);
+    }
+    let run_file = warm_start_config(&args.warm_start)?;
+    rtr::io::check_input_file(&run_file, "--warm-start")?;
+    config.model = TrainConfig::from_toml_file(&run_file)?.model;
+    config.init = Some(InitConfig {
+        policy: args.warm_start.clone(),
+        std_from_logs: true,
+        std_scale: [1.0, 1.0],
+        add_agent_edge_motion: false,
+        agent_edge_motion_scale: 1.0,
+    });
+    Ok(config)
+}
+
+/// The run's `config.toml` beside a model folder or policy file (it names the model size).
+fn warm_start_config(warm_start: &std::path::Path) -> Result<PathBuf> {
+    let dir = if warm_start.is_file() {
+        warm_start.parent().map(PathBuf::from).unwrap_or_default()
+    } else {
+        warm_start.to_path_buf()
+    };
+    let config = dir.join("config.toml");
+    if !config.is_file() {
+        return Err(Error::InvalidArgument(format!(
+            "--warm-start {}: no config.toml there (a model folder such as models/il_ff, or a \
+             finished run folder, was expected)",
+            warm_start.display()
+        )));
+    }
+    Ok(config)
+}
+
+fn table(reports: &[TaskReport]) -> String {
+    let mut out = String::from(
+        "| task | infractions before % | after % | reward before | after | agent-steps | wall s | passed |\n|---|---|---|---|---|---|---|---|\n",
+    );
+    for r in reports {
+        out.push_str(&format!(
+            "| {} | {:.1} | {:.1} | {:.3} | {:.3} | {} | {:.0} | {} |\n",
+            r.name,
+            r.infraction_pct_before,
+            r.infraction_pct_after,
+            r.reward_before,
+            r.reward_after,
+            r.agent_steps,
+            r.wall_s,
+            if r.passed { "yes" } else { "no" }
+        ));
+        if let Some([acceleration, steering]) = &r.push {
+            out.push_str(&format!(
+                "\ncredit: PPO's push on the mean acceleration t = {:.1} (braking is negative), \
+                 on the mean steering t = {:.1}, over {} cars\n",
+                acceleration.t, steering.t, acceleration.cars
+            ));
+        }
+    }
+    out.trim_end().to_string()
+}
