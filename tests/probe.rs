@@ -128,11 +128,21 @@ fn a_target_pose_error_out_of_range_names_the_field() {
 
 #[test]
 fn the_probe_command_prints_one_json_object_per_task() {
+    // A fresh small network and a small PPO batch: the shape of the report, quickly.
+    let dir = tempfile::tempdir().unwrap();
+    let run_file = dir.path().join("probe.toml");
+    std::fs::write(
+        &run_file,
+        "method = \"RL\"\n[model]\nhidden = 32\nlane_layers = 2\ninteraction_rounds = 2\n\
+         head_hidden = [32, 32, 32]\n[ppo]\nbatch = 8\nminibatch = 8\n",
+    )
+    .unwrap();
     let out = Command::new(env!("CARGO_BIN_EXE_rtr"))
         .args([
             "probe",
             "ppo",
-            "--small",
+            "--config",
+            run_file.to_str().unwrap(),
             "--tasks",
             "credit",
             "--train-scenarios",

@@ -42,6 +42,9 @@ pub const MIN_WARM_START_INFRACTION_PCT: f64 = 50.0;
 /// Credit passes when the push towards braking has at least this t statistic and the steering
 /// push stays below it.
 pub const CREDIT_MIN_T: f64 = 3.0;
+/// PPO iterations in which credit trains the value network (the policy stays the warm start)
+/// before measuring.
+pub const CREDIT_VALUE_ITERATIONS: usize = 4;
 
 /// How the probes run.
 #[derive(Debug, Clone)]
@@ -287,16 +290,29 @@ fn collected_agent_steps(rows: &[super::CurveRow]) -> usize {
 
 fn credit_task(settings: &ProbeSettings, data: &TaskData) -> Result<TaskReport> {
     let started = Instant::now();
-    let config = probe_config(settings)?;
+    // Only the value network trains (the trainer's value warm-up), so the advantages are
+    // measured against a baseline of the task rather than a random one; the policy is the
+    // warm start exactly as a run builds it (sigma included).
+    let config = probe_config(&ProbeSettings {
+        iterations: CREDIT_VALUE_ITERATIONS,
+        ..settings.clone()
+    })
+    .map(|mut c| {
+        c.ppo.value_warmup_iterations = CREDIT_VALUE_ITERATIONS;
+        c
+    })?;
     let scratch = std::env::temp_dir().join(format!("rtr-probe-credit-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&scratch);
-    // The trainer builds the warm start exactly as a run does (sigma included); nothing is
-    // trained, so its folder is scratch.
     let devices = super::session::devices(&config)?;
     let plain = devices[0].clone().inner();
-    let trainer = Trainer::new(config.clone(), &data.training, devices, &scratch, false);
+    let trained = Trainer::new(config.clone(), &data.training, devices, &scratch, false).and_then(
+        |mut trainer| {
+            trainer.run(&ProgressBar::hidden(), None)?;
+            Ok(trainer)
+        },
+    );
     let _ = std::fs::remove_dir_all(&scratch);
-    let trainer = trainer?;
+    let trainer = trained?;
     let (policy, value) = (trainer.policy().valid(), trainer.value().valid());
     let (infractions, reward) = measure(&policy, &value, &config, data, &plain)?;
     let dynamics = config.dynamics(&plain)?;
