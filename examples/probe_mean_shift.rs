@@ -7,10 +7,9 @@
 use burn::prelude::*;
 use rtr::data::{A9Dataset, TrafficStatistics, a9};
 use rtr::model::{ActionMode, NetworkPolicy};
-use rtr::scenario::rollout_with_heroes;
-use rtr::scene::SceneBatch;
-use rtr::sim::{Controls, MapCaches, Observation, Policy, RolloutConfig};
-use rtr::train::probe::{ProbeTask, measure::parts, probe_scenarios};
+use rtr::sim::{Controls, Observation, Policy};
+use rtr::train::probe::measure::{parts, rollout_outcomes};
+use rtr::train::probe::{ProbeTask, probe_scenarios};
 use rtr::train::{TrainConfig, load_policy};
 
 /// The network's mean action plus a constant acceleration and a steering term that turns
@@ -93,71 +92,22 @@ fn measure(task: ProbeTask, variants: &[(f32, f64)]) {
     )
     .unwrap();
     let dynamics = config.dynamics(&device).unwrap();
+    let eval = parts(&sets.eval, &scenes);
     for &(accel, heading_gain) in variants {
-        let mut caches = MapCaches::default();
-        let (mut cars, mut col, mut off) = (0, 0, 0);
-        for part in parts(&sets.eval, &scenes) {
-            let batch = SceneBatch::from_scenes(&part.scenes, &device).unwrap();
-            let mut p = Shifted {
-                inner: NetworkPolicy::new(&policy, &batch, ActionMode::Mean),
+        let outcomes = rollout_outcomes(&eval, &dynamics, &device, |part, batch| {
+            Box::new(Shifted {
+                inner: NetworkPolicy::new(&policy, batch, ActionMode::Mean),
                 accel,
                 heading_gain,
                 maps: part.scenes.iter().map(|s| s.map.clone()).collect(),
-            };
-            let out = rollout_with_heroes(
-                &part.scenarios,
-                &part.scenes,
-                &batch,
-                &dynamics,
-                &mut p,
-                &mut caches,
-                &RolloutConfig {
-                    steps: None,
-                    early_termination: true,
-                },
-            )
-            .unwrap();
-            let [b, n, _] = out.simulated.dims();
-            let sim: Vec<bool> = out
-                .simulated
-                .clone()
-                .narrow(2, 0, 1)
-                .reshape([b * n])
-                .into_data()
-                .try_into_vec_as::<bool>()
-                .unwrap();
-            let c: Vec<i64> = out
-                .collision
-                .clone()
-                .int()
-                .sum_dim(2)
-                .reshape([b * n])
-                .into_data()
-                .convert::<i64>()
-                .try_into_vec()
-                .unwrap();
-            let o: Vec<i64> = out
-                .offroad
-                .clone()
-                .int()
-                .sum_dim(2)
-                .reshape([b * n])
-                .into_data()
-                .convert::<i64>()
-                .try_into_vec()
-                .unwrap();
-            for k in 0..b * n {
-                if sim[k] {
-                    cars += 1;
-                    col += (c[k] > 0) as usize;
-                    off += (o[k] > 0) as usize;
-                }
-            }
-        }
+            })
+        })
+        .unwrap();
         println!(
-            "{task:?} accel shift {accel}, heading gain {heading_gain}: cars {cars}, collision {:.1} %, off-road {:.1} %",
-            100.0 * col as f64 / cars as f64,
-            100.0 * off as f64 / cars as f64
+            "{task:?} accel shift {accel}, heading gain {heading_gain}: cars {}, collision {:.1} %, off-road {:.1} %",
+            outcomes.cars,
+            outcomes.pct(outcomes.collided),
+            outcomes.pct(outcomes.offroad)
         );
     }
 }

@@ -3,6 +3,7 @@
 //! its sampled rollouts (what PPO maximises), collected as training collects.
 
 use burn::prelude::*;
+use burn::tensor::Bool;
 
 use super::super::config::PpoConfig;
 use super::super::experience::{CollectNetworks, CollectStats, RewardSettings, collect};
@@ -11,7 +12,7 @@ use crate::error::Result;
 use crate::model::{ActionMode, NetworkPolicy, PolicyNetwork, ValueNetwork};
 use crate::scenario::{ConcreteScenario, rollout_with_heroes};
 use crate::scene::{Scene, SceneBatch};
-use crate::sim::{Dynamics, MapCaches, RolloutConfig};
+use crate::sim::{Dynamics, MapCaches, Policy, Rollout, RolloutConfig};
 
 /// Scenes simulated in one batch.
 const PART_SCENES: usize = 32;
@@ -39,6 +40,76 @@ pub fn parts<'a>(scenarios: &'a [ConcreteScenario], scenes: &'a [Scene]) -> Vec<
     parts
 }
 
+/// How the controlled cars of some rollouts fared.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct CarOutcomes {
+    pub cars: usize,
+    pub collided: usize,
+    pub offroad: usize,
+    /// Either.
+    pub failed: usize,
+}
+
+impl CarOutcomes {
+    /// Percentage of `count` among the cars.
+    pub fn pct(&self, count: usize) -> f64 {
+        100.0 * count as f64 / self.cars.max(1) as f64
+    }
+
+    fn add(&mut self, out: &Rollout) {
+        let [b, n, _] = out.simulated.dims();
+        let per_car = |flags: Tensor<3, Bool>| -> Vec<bool> {
+            flags
+                .any_dim(2)
+                .reshape([b * n])
+                .into_data()
+                .try_into_vec_as::<bool>()
+                .unwrap_or_default()
+        };
+        let controlled = per_car(out.simulated.clone().narrow(2, 0, 1));
+        let collided = per_car(out.collision.clone());
+        let offroad = per_car(out.offroad.clone());
+        for k in 0..controlled.len() {
+            if controlled[k] {
+                self.cars += 1;
+                self.collided += usize::from(collided[k]);
+                self.offroad += usize::from(offroad[k]);
+                self.failed += usize::from(collided[k] || offroad[k]);
+            }
+        }
+    }
+}
+
+/// The outcomes of the cars of `parts` driven by the policy `drive` makes for each part and
+/// its batch (heroes scripted, early termination as in training).
+pub fn rollout_outcomes<'p>(
+    parts: &[Part],
+    dynamics: &Dynamics,
+    device: &Device,
+    drive: impl Fn(&Part, &SceneBatch) -> Box<dyn Policy + 'p>,
+) -> Result<CarOutcomes> {
+    let mut caches = MapCaches::default();
+    let mut outcomes = CarOutcomes::default();
+    for part in parts {
+        let batch = SceneBatch::from_scenes(&part.scenes, device)?;
+        let mut driver = drive(part, &batch);
+        let out = rollout_with_heroes(
+            &part.scenarios,
+            &part.scenes,
+            &batch,
+            dynamics,
+            driver.as_mut(),
+            &mut caches,
+            &RolloutConfig {
+                steps: None,
+                early_termination: true,
+            },
+        )?;
+        outcomes.add(&out);
+    }
+    Ok(outcomes)
+}
+
 /// Percentage of the policy's cars that collide or leave the road when every one drives the
 /// policy's mean action (heroes scripted).
 pub fn infraction_pct(
@@ -47,49 +118,10 @@ pub fn infraction_pct(
     dynamics: &Dynamics,
     device: &Device,
 ) -> Result<f64> {
-    let mut caches = MapCaches::default();
-    let (mut cars, mut failed) = (0usize, 0usize);
-    for part in parts {
-        let batch = SceneBatch::from_scenes(&part.scenes, device)?;
-        let mut driver = NetworkPolicy::new(policy, &batch, ActionMode::Mean);
-        let out = rollout_with_heroes(
-            &part.scenarios,
-            &part.scenes,
-            &batch,
-            dynamics,
-            &mut driver,
-            &mut caches,
-            &RolloutConfig {
-                steps: None,
-                early_termination: true,
-            },
-        )?;
-        let [b, n, _] = out.simulated.dims();
-        let controlled: Vec<bool> = out
-            .simulated
-            .clone()
-            .narrow(2, 0, 1)
-            .reshape([b * n])
-            .into_data()
-            .try_into_vec_as::<bool>()
-            .unwrap_or_default();
-        let any = out
-            .collision
-            .clone()
-            .bool_or(out.offroad.clone())
-            .int()
-            .sum_dim(2)
-            .reshape([b * n])
-            .into_data()
-            .convert::<i64>()
-            .try_into_vec::<i64>()
-            .unwrap_or_default();
-        for (c, k) in controlled.iter().zip(&any) {
-            cars += usize::from(*c);
-            failed += usize::from(*c && *k > 0);
-        }
-    }
-    Ok(100.0 * failed as f64 / cars.max(1) as f64)
+    let outcomes = rollout_outcomes(parts, dynamics, device, |_, batch| {
+        Box::new(NetworkPolicy::new(policy, batch, ActionMode::Mean))
+    })?;
+    Ok(outcomes.pct(outcomes.failed))
 }
 
 /// The training reward of `policy`'s sampled rollouts on `parts` (PPO's reward and early
