@@ -210,6 +210,28 @@ fn head_on_agents_collide_at_the_right_step() {
 }
 
 #[test]
+fn a_car_that_passes_through_a_stopped_one_within_a_step_collides() {
+    // 30 m/s, 10 m behind a stopped car (centres): after one 0.5 s step it is 5 m past it, so
+    // the boxes (4.5 m long) overlap neither at the start nor at the end of the step, only
+    // during it.
+    let y = -1.875;
+    let scene = straight_scene(&[(100.0, y, 0.0, 30.0), (110.0, y, 0.0, 0.0)], 4);
+    let out = run(&scene);
+    let collision = flags(&out.collision);
+    let t = out.steps;
+    for agent in 0..2 {
+        let first = (0..t).find(|&k| collision[agent * t + k]);
+        assert_eq!(first, Some(0), "agent {agent}");
+    }
+    let poses = values(out.poses.clone().reshape([1, 2 * (t + 1), 4]));
+    let x_after = |agent: usize| poses[(agent * (t + 1) + 1) * 4];
+    assert!(
+        x_after(0) - x_after(1) > 4.5,
+        "the ends of the step do not overlap"
+    );
+}
+
+#[test]
 fn a_car_steered_off_the_road_is_flagged_at_the_right_step_and_leaving_the_end_is_not() {
     // Heading 0.12 rad to the right of the road, 20 m/s, no control: the box drifts right
     // 1.2 m per step. The expected first off-road step comes from the exact map query on the

@@ -10,7 +10,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::tally::{bools, floats};
-use crate::geometry::OrientedBox;
+use crate::geometry::{BoxMotion, OrientedBox};
 use crate::scene::{AgentRole, Scene};
 use crate::sim::Rollout;
 
@@ -203,10 +203,23 @@ pub(super) fn first_collisions(
                 let Some(t) = (0..steps).find(|&t| collision[row + t]) else {
                     continue;
                 };
-                // The flag at t is the transition into step t + 1: the boxes overlap there.
-                let me = footprint(i, t + 1);
+                // The flag at t is the transition into step t + 1: the boxes touched during it.
+                let motion = |j: usize| {
+                    let to = footprint(j, t + 1);
+                    if present[(b * n + j) * t1 + t] {
+                        BoxMotion {
+                            from: footprint(j, t),
+                            to,
+                        }
+                    } else {
+                        BoxMotion::still(to)
+                    }
+                };
+                let me = motion(i);
                 let other = (0..agents).find(|&j| {
-                    j != i && present[(b * n + j) * t1 + t + 1] && me.overlaps(&footprint(j, t + 1))
+                    j != i
+                        && present[(b * n + j) * t1 + t + 1]
+                        && me.first_contact(&motion(j)).is_some()
                 });
                 let Some(j) = other else { continue };
                 // Where the other was one step before the contact: at the contact a fast

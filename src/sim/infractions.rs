@@ -1,5 +1,5 @@
-//! Per-step infraction checks for a batch of scenes: collision (oriented boxes overlap) and
-//! off-road (the box leaves the drivable road polygon), plus exits through an open road end.
+//! Per-step infraction checks for a batch of scenes: collision (oriented boxes overlap at any
+//! time of the step) and off-road (the box leaves the drivable road polygon), plus exits through an open road end.
 //!
 //! These flags are not differentiated, so they run as plain Rust on the CPU: scenes in
 //! parallel (rayon), a bounding-circle broad phase and the separating-axis narrow phase of
@@ -11,7 +11,7 @@ use std::sync::Arc;
 
 use rayon::prelude::*;
 
-use crate::geometry::OrientedBox;
+use crate::geometry::{BoxMotion, OrientedBox};
 use crate::map::{BoxOnRoad, Map, PointLocation, RoadRaster};
 
 /// A map with its query cache.
@@ -105,8 +105,16 @@ fn in_rear_quarter(own: &OrientedBox, other: &OrientedBox) -> bool {
     ahead < 0.0 && side.abs() < -ahead
 }
 
-/// Checks every present box against its scene's map and every other present box.
-pub fn check_step(boxes: &StepBoxes, maps: &[MapCache]) -> StepInfractions {
+/// Checks every present box against its scene's map and every other present box. With the
+/// step's start (`previous`), two boxes collide when they overlap at any time of the step
+/// ([`BoxMotion::first_contact`]), not only at its end: at highway speeds a car moves several
+/// car lengths per step and would otherwise pass through a stopped one unseen. A box absent
+/// at the start is checked where it ends.
+pub fn check_step(
+    boxes: &StepBoxes,
+    previous: Option<&StepBoxes>,
+    maps: &[MapCache],
+) -> StepInfractions {
     let n = boxes.agents;
     let total = boxes.present.len();
     let mut out = StepInfractions {
@@ -115,13 +123,23 @@ pub fn check_step(boxes: &StepBoxes, maps: &[MapCache]) -> StepInfractions {
         exited: vec![false; total],
         struck_from_behind: vec![false; total],
     };
-    let footprint = |i: usize| {
+    let footprint = |step: &StepBoxes, i: usize| {
         OrientedBox::new(
-            [boxes.cx[i] as f64, boxes.cy[i] as f64],
-            boxes.heading[i] as f64,
-            boxes.length[i] as f64,
-            boxes.width[i] as f64,
+            [step.cx[i] as f64, step.cy[i] as f64],
+            step.heading[i] as f64,
+            step.length[i] as f64,
+            step.width[i] as f64,
         )
+    };
+    let motion = |i: usize| {
+        let to = footprint(boxes, i);
+        match previous {
+            Some(before) if before.present[i] => BoxMotion {
+                from: footprint(before, i),
+                to,
+            },
+            _ => BoxMotion::still(to),
+        }
     };
     out.collision
         .par_chunks_mut(n)
@@ -132,11 +150,11 @@ pub fn check_step(boxes: &StepBoxes, maps: &[MapCache]) -> StepInfractions {
         .for_each(
             |(b, (((collision, offroad), exited), struck_from_behind))| {
                 let cache = &maps[b];
-                let scene: Vec<(usize, OrientedBox)> = (0..n)
+                let scene: Vec<(usize, BoxMotion)> = (0..n)
                     .filter(|&a| boxes.present[b * n + a])
-                    .map(|a| (a, footprint(b * n + a)))
+                    .map(|a| (a, motion(b * n + a)))
                     .collect();
-                for &(a, fp) in &scene {
+                for &(a, BoxMotion { to: fp, .. }) in &scene {
                     if cache.raster.point_location(&cache.map, fp.center)
                         == PointLocation::BeyondRoadEnd
                     {
@@ -155,9 +173,8 @@ pub fn check_step(boxes: &StepBoxes, maps: &[MapCache]) -> StepInfractions {
                         if exited[c] {
                             continue;
                         }
-                        let reach = fa.bounding_radius() + fc.bounding_radius();
-                        let (dx, dy) = (fa.center[0] - fc.center[0], fa.center[1] - fc.center[1]);
-                        if dx * dx + dy * dy < reach * reach && fa.overlaps(&fc) {
+                        if let Some(s) = fa.first_contact(&fc) {
+                            let (fa, fc) = (fa.at(s), fc.at(s));
                             collision[a] = true;
                             collision[c] = true;
                             at_fault[a] |= !in_rear_quarter(&fa, &fc);
@@ -228,6 +245,7 @@ mod tests {
                 width: &[1.9; 6],
                 present: &[true; 6],
             },
+            None,
             &maps,
         );
         assert_eq!(flags.collision, [true; 6]);
@@ -268,6 +286,7 @@ mod tests {
                 width: &width,
                 present: &present,
             },
+            None,
             &maps,
         );
         let shape = |i: usize| {

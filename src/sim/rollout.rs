@@ -275,6 +275,7 @@ pub fn rollout_from(
     let mut struck_hist = Vec::new();
     let mut actions = Vec::new();
 
+    let mut previous_centres = BoxCentres::of(&poses[0]);
     for k in 0..steps {
         let command = policy.act(&Observation {
             batch,
@@ -307,32 +308,17 @@ pub fn rollout_from(
 
         let pose = pose_of(&state);
         // One read-back per step for the (non-differentiated) infraction checks.
-        let host = pose
-            .to_data()
-            .convert::<f32>()
-            .try_into_vec::<f32>()
-            .unwrap_or_default();
-        let channel = |c: usize| -> Vec<f32> {
-            host.iter()
-                .skip(c)
-                .step_by(FRAME_FEATURES)
-                .copied()
-                .collect()
-        };
-        let (cx, cy, heading) = (channel(0), channel(1), channel(2));
-        present = (0..b * n).map(|i| alive[i] || replay[i]).collect();
+        let centres = BoxCentres::of(&pose);
+        let before = std::mem::replace(
+            &mut present,
+            (0..b * n).map(|i| alive[i] || replay[i]).collect(),
+        );
         let flags = check_step(
-            &StepBoxes {
-                agents: n,
-                cx: &cx,
-                cy: &cy,
-                heading: &heading,
-                length: &length_v,
-                width: &width_v,
-                present: &present,
-            },
+            &centres.boxes(n, &length_v, &width_v, &present),
+            Some(&previous_centres.boxes(n, &length_v, &width_v, &before)),
             &maps,
         );
+        previous_centres = centres;
         let mut collision = vec![false; b * n];
         let mut offroad = vec![false; b * n];
         let mut struck = vec![false; b * n];
@@ -395,4 +381,53 @@ pub fn rollout_from(
         actions: Tensor::stack(actions, 2),
         steps,
     })
+}
+
+/// Host copies of one step's box centres and headings, `[B * N]` row-major (the infraction
+/// checks run on the CPU).
+struct BoxCentres {
+    cx: Vec<f32>,
+    cy: Vec<f32>,
+    heading: Vec<f32>,
+}
+
+impl BoxCentres {
+    /// From a `[B, N, FRAME_FEATURES]` pose tensor.
+    fn of(pose: &Tensor<3>) -> Self {
+        let host = pose
+            .to_data()
+            .convert::<f32>()
+            .try_into_vec::<f32>()
+            .unwrap_or_default();
+        let channel = |c: usize| -> Vec<f32> {
+            host.iter()
+                .skip(c)
+                .step_by(FRAME_FEATURES)
+                .copied()
+                .collect()
+        };
+        Self {
+            cx: channel(0),
+            cy: channel(1),
+            heading: channel(2),
+        }
+    }
+
+    fn boxes<'a>(
+        &'a self,
+        agents: usize,
+        length: &'a [f32],
+        width: &'a [f32],
+        present: &'a [bool],
+    ) -> StepBoxes<'a> {
+        StepBoxes {
+            agents,
+            cx: &self.cx,
+            cy: &self.cy,
+            heading: &self.heading,
+            length,
+            width,
+            present,
+        }
+    }
 }
