@@ -46,8 +46,8 @@ impl std::fmt::Display for Backend {
 impl Backend {
     /// The CPU backend training and evaluation use unless told otherwise: Flex where it is
     /// built in (the default features), else NdArray. Flex was 1.4-2x faster on the paper-size
-    /// network's forward + backward and the training steps, measured side by side (README,
-    /// "Training speed").
+    /// network's forward + backward and the training steps, measured side by side
+    /// (docs/backends-and-speed.md, "Training speed").
     pub fn cpu_default() -> Self {
         if cfg!(feature = "flex") {
             Backend::Flex
