@@ -17,8 +17,9 @@
 //! the policy car's acceleration when a faster car closes on it from behind
 //! ([`print_approached`]).
 //!
-//! This is the long-tail collision of `experiments/main/recipe/results.md` in isolation: there
-//! the cars that ran into a slower car ahead started about 7 m/s faster and held their speed.
+//! This is the long-tail collision of `experiments/recipe/car_following/results.md` in
+//! isolation: there the cars that ran into a slower car ahead started about 7 m/s faster and
+//! held their speed.
 
 use std::path::Path;
 use std::sync::Arc;

@@ -4,9 +4,9 @@
 //! 2. Draws the long-tail training / evaluation / OOD scenario sets (or reuses them).
 //! 3. Trains a short run to show the closed loop at work: by default a 6-iteration RTR
 //!    fine-tune of the shipped IL model with the main RTR's PPO stage
-//!    (`experiments/recipe/final/demo_rtr.toml`); any run file with `--run-file`.
+//!    (`experiments/main/demo_rtr.toml`); any run file with `--run-file`.
 //! 4. Evaluates it, the main comparison's models (`models/{bc,il,rl,rl_shaped,bc_rl,rtr}_main`,
-//!    each the weight average of its run's last six checkpoints; `experiments/main/results.md`)
+//!    each the weight average of its run's last six checkpoints; `experiments/main/README.md`)
 //!    and the IDM reference driver on the nominal (real A9 test split), long-tail and OOD sets.
 //! 5. Prints the paper's table and its headline (RTR against IL on long-tail collisions, with
 //!    nominal realism held) as these models measure it, and writes `results.json`, `table.md`
@@ -26,7 +26,7 @@ use rtr::eval::{
 use rtr::scenario::{GenerateConfig, builtin_families, generate_sets, load_families};
 use rtr::train::TrainConfig;
 
-/// The main comparison's models (`experiments/main/results.md`), in table order.
+/// The main comparison's models (`experiments/main/README.md`), in table order.
 const COMPARISON: [&str; 6] = [
     "bc_main",
     "il_main",
@@ -121,7 +121,7 @@ fn run(args: Args) -> rtr::Result<()> {
         let run_file = args
             .run_file
             .clone()
-            .unwrap_or_else(|| root.join("experiments/recipe/final/demo_rtr.toml"));
+            .unwrap_or_else(|| root.join("experiments/main/demo_rtr.toml"));
         let run_dir = train_demo(&run_file, &args, &dataset, &scenarios)?;
         entries.push(Entry::Trained(Box::new(TrainedPolicy::load(
             &run_dir, &device,

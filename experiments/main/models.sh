@@ -3,17 +3,21 @@
 # average of its run's last six checkpoints into models/<method>_main (policy.bpk, config.toml,
 # averaged.json, and the run's curves.csv; the cards are written by hand from these). The same
 # PPO stage also trains the ablations' models: KL-L and KL-R (imitation signal,
-# ../imitation_signal/ppo_recipe/) and RL with scene-level PPO (../ppo_ablation/ppo_recipe/).
+# ../imitation_signal/) and RL with scene-level PPO (../ppo_ablation/).
 #
 #   cargo build --release && target/release/rtr scenarios generate --out runs/scenarios
 #   experiments/main/models.sh                  # the six main methods, about 2.8 h alone on 2 cores
 #   experiments/main/models.sh rtr bc_rl        # some of them
 #   experiments/main/models.sh kl_l kl_r rl_scene_level   # the ablations, about 40 min each
 #
+# Warm starts: the PPO methods start from models/il_ff and models/bc_ff (shipped). IL and BC
+# start from models/il_recipe and models/bc_recipe, which are not shipped: restore them from
+# git (git checkout 2b50027 -- models/il_recipe models/bc_recipe) or train them from scratch
+# with il_stage1.toml, bc_stage1.toml and bc_stage1_us101.toml (README.md, "Commands").
+#
 # Training is deterministic on the Flex CPU backend: a rerun writes the same weights. The
 # committed PPO models (rtr, bc_rl, rl, rl_shaped) were trained after commit 3d0020c, which
-# made warm-started PPO runs train the action head's output biases (experiments/main/results.md,
-# "The bias fix").
+# made warm-started PPO runs train the action head's output biases (README.md, "The bias fix").
 # Runs go to runs/main_models/<method>; rerunning the script continues an interrupted run.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -70,13 +74,21 @@ if [[ " ${methods[*]} " =~ \ (rtr|bc_rl|rl|rl_shaped|kl_l|kl_r|rl_scene_level)\ 
     echo "models.sh: runs/scenarios/train not found; draw the scenarios first with: $rtr scenarios generate --out runs/scenarios" >&2
     exit 2
 fi
+# IL and BC start from the stage models that are not shipped (see the top of this file).
+for m in "${methods[@]}"; do
+    case $m in il) warm=models/il_recipe ;; bc) warm=models/bc_recipe ;; *) continue ;; esac
+    [ -f "$warm/policy.bpk" ] || [ -f "runs/main_models/$m/policy.bpk" ] || {
+        echo "models.sh: $m starts from $warm, which is not shipped; restore it with: git checkout 2b50027 -- $warm (or train it: experiments/main/README.md, \"Commands\")" >&2
+        exit 2
+    }
+done
 for m in "${methods[@]}"; do
     case $m in
-    il) train_and_average il experiments/recipe/steer_feedforward/il_ff.toml "--keep-checkpoints 20" "${supervised[@]}" ;;
-    bc) train_and_average bc experiments/recipe/steer_feedforward/bc_ff.toml "--keep-checkpoints 20" "${supervised[@]}" ;;
-    rtr) train_and_average rtr experiments/recipe/ppo_credit/rtr_accel_motion_batch64.toml "$ppo_flags" "${ppo[@]}" ;;
-    bc_rl | rl | rl_shaped) train_and_average "$m" "experiments/main/ppo_recipe/$m.toml" "$ppo_flags" "${ppo[@]}" ;;
-    kl_l | kl_r) train_and_average "$m" "experiments/imitation_signal/ppo_recipe/$m.toml" "$ppo_flags" "${ppo[@]}" ;;
-    rl_scene_level) train_and_average "$m" experiments/ppo_ablation/ppo_recipe/rl_scene_level.toml "$ppo_flags" "${ppo[@]}" ;;
+    il) train_and_average il experiments/main/il.toml "--keep-checkpoints 20" "${supervised[@]}" ;;
+    bc) train_and_average bc experiments/main/bc.toml "--keep-checkpoints 20" "${supervised[@]}" ;;
+    rtr) train_and_average rtr experiments/main/rtr.toml "$ppo_flags" "${ppo[@]}" ;;
+    bc_rl | rl | rl_shaped) train_and_average "$m" "experiments/main/$m.toml" "$ppo_flags" "${ppo[@]}" ;;
+    kl_l | kl_r) train_and_average "$m" "experiments/imitation_signal/$m.toml" "$ppo_flags" "${ppo[@]}" ;;
+    rl_scene_level) train_and_average "$m" experiments/ppo_ablation/rl_scene_level.toml "$ppo_flags" "${ppo[@]}" ;;
     esac
 done
