@@ -10,10 +10,10 @@
 #   experiments/main/models.sh rtr bc_rl        # some of them
 #   experiments/main/models.sh kl_l kl_r rl_scene_level   # the ablations, about 40 min each
 #
-# Warm starts: the PPO methods start from models/il_ff and models/bc_ff (shipped). IL and BC
-# start from models/il_recipe and models/bc_recipe, which are not shipped: restore them from
-# git (git checkout 2b50027 -- models/il_recipe models/bc_recipe) or train them from scratch
-# with il_stage1.toml, bc_stage1.toml and bc_stage1_us101.toml (README.md, "Commands").
+# Warm starts: the PPO methods start from models/il_ff and models/bc_ff, IL from
+# models/il_recipe (all shipped). BC starts from models/bc_recipe, which is not shipped:
+# restore it from git (git checkout 2b50027 -- models/bc_recipe) or train it from scratch with
+# bc_stage1.toml and bc_stage1_us101.toml (README.md, "Commands").
 #
 # Training is deterministic on the Flex CPU backend: a rerun writes the same weights. The
 # committed PPO models (rtr, bc_rl, rl, rl_shaped) were trained after commit 3d0020c, which
@@ -74,7 +74,7 @@ if [[ " ${methods[*]} " =~ \ (rtr|bc_rl|rl|rl_shaped|kl_l|kl_r|rl_scene_level)\ 
     echo "models.sh: runs/scenarios/train not found; draw the scenarios first with: $rtr scenarios generate --out runs/scenarios" >&2
     exit 2
 fi
-# IL and BC start from the stage models that are not shipped (see the top of this file).
+# BC starts from a stage model that is not shipped (see the top of this file).
 for m in "${methods[@]}"; do
     case $m in il) warm=models/il_recipe ;; bc) warm=models/bc_recipe ;; *) continue ;; esac
     [ -f "$warm/policy.bpk" ] || [ -f "runs/main_models/$m/policy.bpk" ] || {
