@@ -27,7 +27,7 @@ use std::sync::Arc;
 use rtr::data::{AgentState, VehicleClass};
 use rtr::eval::evaluate::simulate_set;
 use rtr::eval::{EvalConfig, EvalPolicy, EvalScenes, EvalSet, IdmBaseline, TrainedPolicy};
-use rtr::geometry::OrientedBox;
+use rtr::geometry::{BoxMotion, OrientedBox};
 use rtr::map::{LaneGraph, Map};
 use rtr::scene::{AgentRole, Scene, SceneAgent, SceneBatch};
 use rtr::sim::{Controls, Dynamics, Observation, Policy};
@@ -368,8 +368,16 @@ fn outcome(scene: &Scene, lane_y: f64) -> Outcome {
             0.5 * (WIDTH_M * a.heading.cos().abs() + LENGTH_M * a.heading.sin().abs());
         (a.y - lane_y).abs() + half_extent > 1.5 * LANE_WIDTH_M
     };
-    let contact_at = (now + 1..follower.len())
-        .find(|&t| footprint(&follower[t]).overlaps(&footprint(&leader[t])));
+    // As the simulator counts it: the boxes touch at any time of the step into t.
+    let motion = |states: &[AgentState], t: usize| BoxMotion {
+        from: footprint(&states[t - 1]),
+        to: footprint(&states[t]),
+    };
+    let contact_at = (now + 1..follower.len()).find(|&t| {
+        motion(follower, t)
+            .first_contact(&motion(leader, t))
+            .is_some()
+    });
     let offroad_at = (now + 1..follower.len()).find(|&t| off_road(&follower[t]));
     let first = match (contact_at, offroad_at) {
         (Some(c), Some(o)) => Some(c.min(o)),
