@@ -509,15 +509,23 @@ fn runs_keep_the_checkpoints_asked_for_and_resume_whatever_the_count() {
 
 #[test]
 fn a_killed_and_resumed_run_equals_an_uninterrupted_one() {
+    // With `ppo.target_kl` the policy's learning rate is state too: it moves at every step
+    // after an iteration's first, and a resumed run must continue from where it was.
     let config = || {
         let mut c = tiny("RTR", "alpha = 0.5", "");
         c.optimizer.epochs = 3;
         c.ppo.minibatch = 1;
+        c.ppo.target_kl = Some(0.01);
         c
     };
     let whole = tempfile::tempdir().expect("temp dir");
     let rows = train(config(), whole.path(), false, None);
     assert_eq!(rows.len(), 6, "3 iterations x 2 minibatches");
+    let rates: Vec<f64> = rows.iter().map(|r| r.learning_rate).collect();
+    assert!(
+        rates.windows(2).any(|w| w[0] != w[1]) && rows.iter().any(|r| r.approx_kl > 0.0),
+        "the adaptive rate moved: {rates:?}"
+    );
 
     let parts = tempfile::tempdir().expect("temp dir");
     let first = train(config(), parts.path(), false, Some(1));
@@ -932,6 +940,14 @@ fn run_files_with_mistakes_are_named() {
             err.to_string().contains("ppo.noise_correlation") && err.to_string().contains("[0, 1)"),
             "{err}"
         );
+    }
+    for kl in ["0.0", "-0.01", "nan"] {
+        let err = TrainConfig::from_toml_str(
+            &format!("method = \"RL\"\n[ppo]\ntarget_kl = {kl}\n"),
+            "rl.toml",
+        )
+        .expect_err("not a KL target > 0");
+        assert!(err.to_string().contains("ppo.target_kl"), "{err}");
     }
 }
 

@@ -40,10 +40,18 @@ pub struct LoopState {
     pub updates: usize,
     /// The run's config as TOML, so `--resume` can refuse a changed config.
     pub config_toml: String,
+    /// What `ppo.target_kl` has made of the policy's learning rate, as a factor on the
+    /// schedule's (1 without it).
+    #[serde(default = "unit_scale")]
+    pub policy_lr_scale: f64,
     /// sha256 of each tensor file of the checkpoint, by file name (empty in checkpoints written
     /// before checksums were kept; those are loaded unchecked).
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub checksums: BTreeMap<String, String>,
+}
+
+fn unit_scale() -> f64 {
+    1.0
 }
 
 /// Everything a resumed run needs.

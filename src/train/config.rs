@@ -242,6 +242,15 @@ pub struct PpoConfig {
     /// `experiments/recipe/ppo_credit/`). `true` (the paper): both controls are sampled.
     #[serde(skip_serializing_if = "is_true")]
     pub explore_steering: bool,
+    /// Not in the paper: keep each policy step's KL divergence from the policy that collected
+    /// the experience near this target by scaling the policy's learning rate (rsl_rl's
+    /// adaptive schedule, [`super::ppo::adapt_lr_scale`]); the value network keeps the
+    /// scheduled rate. The step a fixed rate takes is Adam's (about the rate per weight),
+    /// whatever the gradient; with a sigma as small as the logs' (0.0022 rad of steering) that
+    /// moves the mean by several sigmas, so after one step most ratios lie outside the clip and
+    /// the epochs that follow push on what is left. `None` (the paper): the fixed schedule.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub target_kl: Option<f64>,
 }
 
 fn is_true(b: &bool) -> bool {
@@ -272,6 +281,7 @@ impl Default for PpoConfig {
             bootstrap_exits: false,
             at_fault_collisions: false,
             explore_steering: true,
+            target_kl: None,
         }
     }
 }
@@ -778,6 +788,12 @@ impl TrainConfig {
         }
         if !(p.value_weight.is_finite() && p.value_weight >= 0.0) {
             return fail("ppo.value_weight", "expected a finite weight >= 0");
+        }
+        if p.target_kl.is_some_and(|k| !positive(k)) {
+            return fail(
+                "ppo.target_kl",
+                "expected a KL divergence per agent-step > 0 (e.g. 0.01), or no key for a fixed rate",
+            );
         }
         if let Some(why) = self.imitation.perturbation.as_ref().and_then(|p| p.check()) {
             return fail("imitation.perturbation", &why);

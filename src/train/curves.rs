@@ -40,6 +40,10 @@ pub struct CurveRow {
     /// Seconds since the run (or the resumed run) started: the only column that differs
     /// between an interrupted and an uninterrupted run.
     pub elapsed_s: f64,
+    /// Estimated KL divergence per PPO agent-step of the policy before this step from the one
+    /// that collected the experience (0 without PPO; absent in curves written before it).
+    #[serde(default)]
+    pub approx_kl: f64,
 }
 
 pub struct Curves {

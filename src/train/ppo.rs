@@ -21,20 +21,32 @@ pub struct MaskedSum {
     pub count: usize,
 }
 
+/// The clipped surrogate of some masked entries, and how far the policy has moved from the one
+/// that collected them.
+#[derive(Debug, Clone)]
+pub struct Surrogate {
+    pub loss: MaskedSum,
+    /// Entries whose ratio lies outside the clip range.
+    pub clipped: usize,
+    /// Sum over the entries of `(r - 1) - ln r`, an unbiased and never negative estimate of
+    /// KL(pi_old || pi) per entry from actions drawn by pi_old (Schulman's k3 estimator).
+    pub approx_kl: f64,
+}
+
 /// Clipped surrogate `-min(r A, clip(r, 1 - eps, 1 + eps) A)` summed over `mask`, with
 /// r = exp(new_log_prob - old_log_prob); `[B, N, T]` inputs (N = 1 for the scene-level
-/// variant). Also returns how many masked entries were clipped.
+/// variant).
 pub fn clipped_surrogate(
     new_log_prob: Tensor<3>,
     old_log_prob: Tensor<3>,
     advantages: Tensor<3>,
     mask: Tensor<3, Bool>,
     clip: f64,
-) -> (MaskedSum, usize) {
+) -> Surrogate {
     let weight = mask.clone().float();
     // Masked entries get log-ratio 0 so no exp can overflow there.
     let log_ratio = (new_log_prob - old_log_prob.detach()) * weight.clone();
-    let ratio = log_ratio.exp();
+    let ratio = log_ratio.clone().exp();
     let clipped = ratio.clone().clamp(1.0 - clip, 1.0 + clip);
     let unclipped_term = ratio.clone() * advantages.clone();
     let clipped_term = clipped * advantages;
@@ -48,13 +60,35 @@ pub fn clipped_surrogate(
         .sum()
         .into_scalar::<i64>() as usize;
     let count = mask.int().sum().into_scalar::<i64>() as usize;
-    (
-        MaskedSum {
+    let detached = log_ratio.detach();
+    let approx_kl = (detached.clone().exp().sub_scalar(1.0) - detached)
+        .sum()
+        .into_scalar::<f64>();
+    Surrogate {
+        loss: MaskedSum {
             sum: (surrogate * weight).sum().neg(),
             count,
         },
-        clipped_count,
-    )
+        clipped: clipped_count,
+        approx_kl,
+    }
+}
+
+/// Bounds of the factor `ppo.target_kl` puts on the scheduled learning rate.
+pub const LR_SCALE_RANGE: (f64, f64) = (1e-3, 10.0);
+
+/// The next learning-rate factor of the adaptive schedule (rsl_rl's): / 1.5 when the KL
+/// measured at an update exceeds twice the target, x 1.5 when it is below half of it, within
+/// [`LR_SCALE_RANGE`].
+pub fn adapt_lr_scale(scale: f64, kl: f64, target: f64) -> f64 {
+    let next = if kl > 2.0 * target {
+        scale / 1.5
+    } else if kl < 0.5 * target {
+        scale * 1.5
+    } else {
+        scale
+    };
+    next.clamp(LR_SCALE_RANGE.0, LR_SCALE_RANGE.1)
 }
 
 /// Squared error of `values` against `returns`, summed over `mask`.
@@ -80,6 +114,8 @@ pub struct PpoTerms {
     /// KL(pi || pi_ref) summed over alive agent-steps (KL-L).
     pub kl: Option<MaskedSum>,
     pub clipped: usize,
+    /// [`Surrogate::approx_kl`] of the part.
+    pub approx_kl: f64,
 }
 
 /// Affine standardisation of advantages (identity unless `ppo.normalize_advantages`).
@@ -158,9 +194,9 @@ pub fn ppo_terms(
     let new_log_prob = Tensor::stack::<3>(log_probs, 2);
     let values = Tensor::stack::<3>(values, 2);
     let standardise = |a: Tensor<3>| a.sub_scalar(scale.mean).div_scalar(scale.std.max(1e-8));
-    let (policy_loss, clipped, value_loss) = match config.variant {
+    let (surrogate, value_loss) = match config.variant {
         PpoVariant::Factorized => {
-            let (surrogate, clipped) = clipped_surrogate(
+            let surrogate = clipped_surrogate(
                 new_log_prob,
                 exp.old_log_prob.clone(),
                 standardise(exp.advantages.clone()),
@@ -168,12 +204,12 @@ pub fn ppo_terms(
                 config.clip,
             );
             let value = value_loss(values, exp.returns.clone(), exp.alive.clone());
-            (surrogate, clipped, value)
+            (surrogate, value)
         }
         PpoVariant::SceneLevel => {
             let joint_new = sum_over_agents(new_log_prob, exp.alive.clone());
             let joint_old = sum_over_agents(exp.old_log_prob.clone(), exp.alive.clone());
-            let (surrogate, clipped) = clipped_surrogate(
+            let surrogate = clipped_surrogate(
                 joint_new,
                 joint_old,
                 standardise(exp.scene_advantages.clone()),
@@ -186,7 +222,7 @@ pub fn ppo_terms(
                 exp.scene_returns.clone(),
                 exp.scene_alive.clone(),
             );
-            (surrogate, clipped, value)
+            (surrogate, value)
         }
     };
     let kl = (!kls.is_empty()).then(|| {
@@ -197,10 +233,11 @@ pub fn ppo_terms(
         }
     });
     PpoTerms {
-        policy: policy_loss,
+        policy: surrogate.loss,
         value: value_loss,
         kl,
-        clipped,
+        clipped: surrogate.clipped,
+        approx_kl: surrogate.approx_kl,
     }
 }
 
@@ -231,21 +268,77 @@ mod tests {
         let old = t3(&[0.0, 0.0, 0.0], [1, 3, 1]);
         let adv = t3(&[2.0, 1.0, 100.0], [1, 3, 1]);
         let alive = mask(&[true, true, false], [1, 3, 1]);
-        let (loss, clipped) = clipped_surrogate(new, old, adv, alive, 0.2);
+        let s = clipped_surrogate(new, old, adv, alive, 0.2);
         let want = -(2.0 * 0.1f64.exp() + 1.2);
-        let got = loss.sum.into_scalar::<f64>();
+        let got = s.loss.sum.into_scalar::<f64>();
         assert!((got - want).abs() < 1e-5, "{got} vs {want}");
-        assert_eq!((loss.count, clipped), (2, 1));
+        assert_eq!((s.loss.count, s.clipped), (2, 1));
+        // k3 over the two live entries only: (e^x - 1) - x at x = 0.1 and 0.5.
+        let k3 = |x: f64| x.exp() - 1.0 - x;
+        assert!(
+            (s.approx_kl - (k3(0.1) + k3(0.5))).abs() < 1e-5,
+            "{}",
+            s.approx_kl
+        );
 
         // Negative advantage: r = e^-0.5 = 0.607 clipped to 0.8; min(-0.607, -0.8) = -0.8.
-        let (loss, _) = clipped_surrogate(
+        let s = clipped_surrogate(
             t3(&[-0.5], [1, 1, 1]),
             t3(&[0.0], [1, 1, 1]),
             t3(&[-1.0], [1, 1, 1]),
             mask(&[true], [1, 1, 1]),
             0.2,
         );
-        assert!((loss.sum.into_scalar::<f64>() - 0.8).abs() < 1e-6);
+        assert!((s.loss.sum.into_scalar::<f64>() - 0.8).abs() < 1e-6);
+    }
+
+    /// Samples of N(mu_old, sigma) scored under N(mu_new, sigma): the k3 estimate averages to
+    /// the closed-form KL (mu_new - mu_old)^2 / (2 sigma^2).
+    #[test]
+    fn approx_kl_estimates_the_kl_to_the_collecting_policy() {
+        let (n, sigma, shift) = (200_000, 0.5f64, 0.3f64);
+        let mut rng = 5u64;
+        let draws: Vec<f64> = (0..n)
+            .map(|_| {
+                let u1 = 1.0 - crate::test_rng::uniform(&mut rng, 0.0, 1.0);
+                let u2 = crate::test_rng::uniform(&mut rng, 0.0, 1.0);
+                sigma * (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+            })
+            .collect();
+        let log_density = |x: f64, mu: f64| -(x - mu).powi(2) / (2.0 * sigma * sigma);
+        let old: Vec<f32> = draws.iter().map(|&x| log_density(x, 0.0) as f32).collect();
+        let new: Vec<f32> = draws
+            .iter()
+            .map(|&x| log_density(x, shift) as f32)
+            .collect();
+        let s = clipped_surrogate(
+            t3(&new, [1, n, 1]),
+            t3(&old, [1, n, 1]),
+            Tensor::zeros([1, n, 1], &device()),
+            mask(&vec![true; n], [1, n, 1]),
+            0.2,
+        );
+        let want = shift * shift / (2.0 * sigma * sigma);
+        let got = s.approx_kl / n as f64;
+        assert!((got - want).abs() < 0.03 * want, "{got} vs {want}");
+    }
+
+    #[test]
+    fn the_adaptive_rate_moves_only_outside_the_band_and_stays_bounded() {
+        let target = 0.01;
+        assert_eq!(adapt_lr_scale(1.0, 0.03, target), 1.0 / 1.5);
+        assert_eq!(adapt_lr_scale(1.0, 0.001, target), 1.5);
+        assert_eq!(adapt_lr_scale(1.0, 0.01, target), 1.0);
+        assert_eq!(adapt_lr_scale(1.0, 0.019, target), 1.0);
+        let mut scale = 1.0;
+        for _ in 0..100 {
+            scale = adapt_lr_scale(scale, 1.0, target);
+        }
+        assert_eq!(scale, LR_SCALE_RANGE.0);
+        for _ in 0..100 {
+            scale = adapt_lr_scale(scale, 0.0, target);
+        }
+        assert_eq!(scale, LR_SCALE_RANGE.1);
     }
 
     #[test]
@@ -265,8 +358,8 @@ mod tests {
         let adv = Tensor::<3>::ones([1, 1, 2], &device);
         let alive =
             Tensor::<3, Bool>::from_data(TensorData::new(vec![true, false], [1, 1, 2]), &device);
-        let (loss, _) = clipped_surrogate(new.clone(), old, adv, alive, 0.2);
-        let grads = loss.sum.backward();
+        let s = clipped_surrogate(new.clone(), old, adv, alive, 0.2);
+        let grads = s.loss.sum.backward();
         let g: Vec<f32> = new
             .grad(&grads)
             .expect("gradient")

@@ -38,7 +38,7 @@ use super::curves::{CurveRow, Curves};
 use super::experience::{CollectNetworks, CollectStats, Experience, RewardSettings, collect};
 use super::gradients::{GraphLoss, GraphwiseGradients, clip_global_norm, sum_on_device};
 use super::imitation::{BcLabels, behaviour_cloning, closed_loop_imitation, imitation_count};
-use super::ppo::{AdvantageScale, ppo_terms};
+use super::ppo::{AdvantageScale, adapt_lr_scale, ppo_terms};
 use super::shards::{BUCKET_SCENES, per_device, plan};
 use super::sources::{InitialState, Part, TrainingData};
 use crate::error::{Error, Result};
@@ -155,6 +155,8 @@ struct TermValues {
     value: f64,
     kl: f64,
     clipped: usize,
+    /// Summed over the PPO entries ([`super::ppo::Surrogate::approx_kl`]).
+    approx_kl: f64,
 }
 
 impl std::ops::AddAssign for TermValues {
@@ -166,6 +168,7 @@ impl std::ops::AddAssign for TermValues {
         self.value += o.value;
         self.kl += o.kl;
         self.clipped += o.clipped;
+        self.approx_kl += o.approx_kl;
     }
 }
 
@@ -219,6 +222,8 @@ pub struct Trainer<'d> {
     curves: Curves,
     started: Instant,
     timing: IterationTiming,
+    /// The policy has taken a step since this iteration's experience was collected.
+    policy_stepped: bool,
 }
 
 /// Where the last iteration's wall time went (`rtr bench train`).
@@ -425,6 +430,7 @@ impl<'d> Trainer<'d> {
                         iteration: 0,
                         updates: 0,
                         config_toml,
+                        policy_lr_scale: 1.0,
                         checksums: Default::default(),
                     },
                 )
@@ -459,6 +465,7 @@ impl<'d> Trainer<'d> {
             curves,
             started: Instant::now(),
             timing: IterationTiming::default(),
+            policy_stepped: false,
             config,
         })
     }
@@ -604,6 +611,7 @@ impl<'d> Trainer<'d> {
             collected.push(work);
         }
         let collect_s = start.elapsed().as_secs_f64();
+        self.policy_stepped = false;
         let mut order: Vec<usize> = (0..collected.len()).collect();
         let mut row = None;
         for pass in 0..config.ppo.epochs {
@@ -684,6 +692,20 @@ impl<'d> Trainer<'d> {
                 })
                 .collect()
         })
+    }
+
+    /// The policy's learning rate for this step: the schedule's `lr`, times the factor that
+    /// `ppo.target_kl` adapts to the KL this minibatch measured. The KL is only news once the
+    /// policy has stepped since the experience was collected (before that it is 0).
+    fn policy_learning_rate(&mut self, lr: f64, approx_kl: f64, warming_up: bool) -> f64 {
+        if let Some(target) = self.config.ppo.target_kl
+            && self.policy_stepped
+            && !warming_up
+        {
+            self.state.policy_lr_scale =
+                adapt_lr_scale(self.state.policy_lr_scale, approx_kl, target);
+        }
+        lr * self.state.policy_lr_scale
     }
 
     /// One optimizer step on a minibatch; hands the work back (PPO reuses its experience).
@@ -821,6 +843,7 @@ impl<'d> Trainer<'d> {
                         method == Method::KlLoss,
                     );
                     terms.clipped += t.clipped;
+                    terms.approx_kl += t.approx_kl;
                     let mut loss = GraphLoss::default();
                     let policy_term = loss.add(t.policy.sum, norm.ppo, weights.policy);
                     terms.policy += policy_term.unwrap_or(0.0);
@@ -890,10 +913,13 @@ impl<'d> Trainer<'d> {
         } else {
             None
         };
+        let approx_kl = terms.approx_kl / norm.ppo.max(1) as f64;
+        let policy_lr = self.policy_learning_rate(lr, approx_kl, warming_up);
         if !warming_up {
             self.policy = self
                 .policy_optimizer
-                .step(lr, self.policy.clone(), policy_grads);
+                .step(policy_lr, self.policy.clone(), policy_grads);
+            self.policy_stepped = true;
         }
         if let Some(g) = value_grads {
             self.value = self.value_optimizer.step(lr, self.value.clone(), g);
@@ -905,7 +931,7 @@ impl<'d> Trainer<'d> {
             iteration: i,
             update: self.state.updates,
             epoch,
-            learning_rate: lr,
+            learning_rate: policy_lr,
             loss: terms.total,
             il_loss: terms.il,
             bc_loss: terms.bc,
@@ -921,6 +947,7 @@ impl<'d> Trainer<'d> {
             ppo_agent_steps: stats.agent_steps,
             scenes,
             elapsed_s: self.started.elapsed().as_secs_f64(),
+            approx_kl,
         };
         self.curves.push(row.clone())?;
         Ok((row, returned))

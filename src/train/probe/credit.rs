@@ -133,14 +133,14 @@ fn surrogate_descent(
         log_probs.push(leaf.log_prob_of(to_graph(action.clone()), explored));
         means.push(mean);
     }
-    let (surrogate, _) = clipped_surrogate(
+    let surrogate = clipped_surrogate(
         Tensor::stack::<3>(log_probs, 2),
         to_graph(old_log_prob),
         to_graph(advantages),
         Tensor::<3, Bool>::from_data(alive.into_data(), &device),
         clip,
     );
-    let grads = surrogate.sum.backward();
+    let grads = surrogate.loss.sum.backward();
     means
         .iter()
         .map(|mean| match mean.grad(&grads) {
