@@ -68,6 +68,98 @@ fn render_writes_png_and_svg() {
     assert!(svg.contains("<svg") && svg.contains("<polygon"));
 }
 
+/// `rtr render --animate` on an A9 test scene with the shipped IL model. Frame rule: one frame
+/// per step of the scene's window, its history, the current step, then every simulated step
+/// (`Scene::steps()`: 4 + 1 + 12 = 17 frames), `--width` wide and as tall as the fixed view of
+/// the window (`frame_size` within the `window_focus` of every car in the log and in the same
+/// rollout made here). The cars move: every frame differs from the one before above the
+/// progress bar along the bottom edge. An --out that is not a .gif, and the policy flags
+/// without --animate, are refused naming the flags.
+#[test]
+fn render_animate_writes_a_gif_of_a_policy_rollout() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("rollout.gif");
+    let out = rtr(&[
+        "render",
+        "--animate",
+        "--checkpoint",
+        "models/il",
+        "--index",
+        "3",
+        "--width",
+        "240",
+        "--out",
+        path.to_str().expect("utf-8 path"),
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        stdout.contains("17 frames") && stdout.contains("IL (models/il)"),
+        "{stdout}"
+    );
+
+    let data = rtr::data::A9Dataset::load(&rtr::data::a9::default_dir()).expect("A9 loads");
+    let split = data
+        .scenes(&rtr::data::SceneConfig::default())
+        .expect("scenes");
+    let scene = &split.test[3];
+    let device = rtr::backend::Backend::NdArray
+        .device(false)
+        .expect("CPU device");
+    let il = rtr::eval::TrainedPolicy::load("models/il".as_ref(), &device).expect("IL loads");
+    let set = rtr::eval::EvalScenes::real(vec![scene.clone()]);
+    let rollout =
+        rtr::eval::watch_rollout(&il.network, &il.dynamics, &set, 0, &device).expect("rollout");
+    let opts = rtr::render::RenderOptions {
+        width_px: 240,
+        focus: rtr::render::window_focus(&[scene, &rollout.scene], &[]),
+        ..Default::default()
+    };
+    let (width, height) = rtr::render::frame_size(&scene.map, &opts).expect("view");
+    assert_eq!(width, 240);
+
+    let mut options = gif::DecodeOptions::new();
+    options.set_color_output(gif::ColorOutput::RGBA);
+    let file = std::fs::File::open(&path).expect("gif written");
+    let mut decoder = options.read_info(file).expect("a GIF");
+    assert_eq!(
+        (decoder.width().into(), decoder.height().into()),
+        (width, height)
+    );
+    let mut frames = Vec::new();
+    while let Some(frame) = decoder.read_next_frame().expect("frame decodes") {
+        assert_eq!((frame.width.into(), frame.height.into()), (width, height));
+        frames.push(frame.buffer.to_vec());
+    }
+    assert_eq!(scene.steps(), 17);
+    assert_eq!(frames.len(), scene.steps());
+    let bar_px = (height / 40).max(3);
+    let above_bar = ((height - bar_px) * width * 4) as usize;
+    for (k, pair) in frames.windows(2).enumerate() {
+        assert_ne!(
+            pair[0][..above_bar],
+            pair[1][..above_bar],
+            "frames {k} and {}",
+            k + 1
+        );
+    }
+
+    let out = rtr(&["render", "--animate", "--out", "scene.png"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("--out scene.png") && err.contains("--animate"),
+        "{err}"
+    );
+    assert!(err.contains(".gif"), "{err}");
+    let out = rtr(&["render", "--idm", "--out", "scene.png"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("--animate"), "{err}");
+}
+
 #[test]
 fn bad_arguments_fail_with_a_message() {
     let out = rtr(&["render", "--index", "100000", "--out", "unused.png"]);

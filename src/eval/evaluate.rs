@@ -313,6 +313,17 @@ pub fn simulated_scenes(
     indices: &[usize],
     device: &burn::prelude::Device,
 ) -> Result<Vec<Scene>> {
+    Ok(simulated_rollout(policy, dynamics, set, indices, device)?.0)
+}
+
+/// As [`simulated_scenes`], with the rollout they were made from (its infraction flags).
+pub fn simulated_rollout(
+    policy: &dyn EvalPolicy,
+    dynamics: &Dynamics,
+    set: &EvalScenes,
+    indices: &[usize],
+    device: &burn::prelude::Device,
+) -> Result<(Vec<Scene>, crate::sim::Rollout)> {
     let (_, out) = rollout_group(
         policy,
         dynamics,
@@ -323,7 +334,7 @@ pub fn simulated_scenes(
         None,
     )?;
     let scenes: Vec<&Scene> = indices.iter().map(|&k| &set.scenes[k]).collect();
-    Ok(rollout_scenes(&scenes, &out))
+    Ok((rollout_scenes(&scenes, &out), out))
 }
 
 /// Every scene of `set` as `policy` drives it (see [`simulated_scenes`]), in scene order: with

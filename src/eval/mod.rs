@@ -11,7 +11,8 @@
 //! - [`report`], [`plots`]: tables, JSON, figures;
 //! - [`study`], [`sweep`]: several policies or a lambda x alpha grid end to end;
 //! - [`curate`]: the training scenes a policy fails on (the "Curated" scenario set);
-//! - [`downstream`]: predictors trained on each policy's simulated data, scored on real data.
+//! - [`downstream`]: predictors trained on each policy's simulated data, scored on real data;
+//! - [`watch`]: one scene's rollout with its infractions, for an animation.
 
 pub mod averaged;
 pub mod bootstrap;
@@ -32,6 +33,7 @@ pub mod study;
 pub mod sweep;
 pub mod tally;
 pub mod trained;
+pub mod watch;
 
 pub use bootstrap::Estimate;
 pub use evaluate::{EvalConfig, SetResult, evaluate, evaluate_tallies, summarise};
@@ -43,3 +45,4 @@ pub use report::{MethodResult, markdown_table, results_json};
 pub use sets::{EvalScenes, EvalSet, load_sets};
 pub use tally::tally_rollout;
 pub use trained::TrainedPolicy;
+pub use watch::{WatchedRollout, watch_rollout};

@@ -24,7 +24,8 @@ enum Command {
         #[command(subcommand)]
         command: commands::data::DataCommand,
     },
-    /// Draw a scene of the nominal dataset (road, lane marks, boxes, history, logged future).
+    /// Draw a scene (A9, CommonRoad or a long-tail scenario: road, lane marks, boxes, history,
+    /// logged future), or animate a policy's rollout on it (--animate, GIF).
     Render(commands::render::RenderArgs),
     /// Throughput benchmarks, printed as JSON.
     Bench {

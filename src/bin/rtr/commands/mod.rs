@@ -1,5 +1,6 @@
 //! One module per `rtr` subcommand: its arguments and its handler, `run`.
 
+pub mod animate;
 pub mod args;
 pub mod bench;
 pub mod curate;

@@ -1,5 +1,6 @@
 //! Top-down drawings of scenes: road surface, lane marks, vehicle boxes at the current step,
-//! their history and their logged future. PNG (plotters' bitmap backend) and SVG.
+//! their history and their logged future. PNG (plotters' bitmap backend) and SVG; animated GIFs
+//! of a whole window in [`animation`].
 //!
 //! The view is rotated so the road's main direction runs left to right (highway maps are long
 //! and thin), and scaled to a fixed width. No text is drawn: plotters needs system fonts for
@@ -12,7 +13,15 @@ use plotters::prelude::*;
 use crate::error::{Error, Result};
 use crate::io::atomic_write_with;
 use crate::map::{Map, RoadMark};
-use crate::scene::{AgentRole, Scene};
+use crate::scene::{AgentRole, Scene, SceneAgent};
+
+pub mod animation;
+mod palette;
+
+pub use animation::{
+    AnimationSummary, Infraction, InfractionKind, MAX_FPS, animate_scene, check_animation_target,
+    frame_size, window_focus,
+};
 
 const ASPHALT: RGBColor = RGBColor(150, 150, 150);
 const SHOULDER: RGBColor = RGBColor(190, 190, 185);
@@ -24,6 +33,8 @@ pub const CONTROLLED: RGBColor = RGBColor(31, 119, 180);
 pub const REPLAYED: RGBColor = RGBColor(255, 127, 14);
 /// Highlight (e.g. a long-tail scenario's hero).
 pub const HIGHLIGHT: RGBColor = RGBColor(214, 39, 40);
+/// Outline of a car from its first infraction on (animations).
+pub const INFRACTION: RGBColor = RGBColor(230, 0, 230);
 
 /// German motorway broken line: 6 m dash, 12 m gap.
 const DASH_M: f64 = 6.0;
@@ -146,12 +157,7 @@ pub fn render_map(map: &Map, path: &Path, opts: &RenderOptions) -> Result<()> {
 /// command can refuse it before loading one): a width outside 16 to [`MAX_WIDTH_PX`] px, a
 /// file name that is not `.png` or `.svg`.
 pub fn check_target(path: &Path, opts: &RenderOptions) -> Result<()> {
-    if !(16..=MAX_WIDTH_PX).contains(&opts.width_px) {
-        return Err(Error::InvalidArgument(format!(
-            "image width {} px: expected 16 to {MAX_WIDTH_PX} px",
-            opts.width_px
-        )));
-    }
+    check_width(opts)?;
     match path.extension().and_then(|e| e.to_str()).unwrap_or("") {
         "svg" | "png" => Ok(()),
         other => Err(Error::InvalidArgument(format!(
@@ -159,6 +165,16 @@ pub fn check_target(path: &Path, opts: &RenderOptions) -> Result<()> {
             path.display()
         ))),
     }
+}
+
+fn check_width(opts: &RenderOptions) -> Result<()> {
+    if !(16..=MAX_WIDTH_PX).contains(&opts.width_px) {
+        return Err(Error::InvalidArgument(format!(
+            "image width {} px: expected 16 to {MAX_WIDTH_PX} px",
+            opts.width_px
+        )));
+    }
+    Ok(())
 }
 
 fn render(map: &Map, scene: Option<&Scene>, path: &Path, opts: &RenderOptions) -> Result<()> {
@@ -191,10 +207,24 @@ fn draw<DB: DrawingBackend>(
     view: &View,
     opts: &RenderOptions,
 ) -> Result<()> {
-    let fail = |e: DrawingAreaErrorKind<DB::ErrorType>| {
-        Error::InvalidArgument(format!("drawing failed: {e}"))
-    };
-    area.fill(&GROUND).map_err(fail)?;
+    draw_road(&area, map, view).map_err(drawing_failed)?;
+    if let Some(scene) = scene {
+        draw_agents(&area, scene, view, opts).map_err(drawing_failed)?;
+    }
+    area.present().map_err(drawing_failed)
+}
+
+fn drawing_failed<E: std::error::Error + Send + Sync>(e: DrawingAreaErrorKind<E>) -> Error {
+    Error::InvalidArgument(format!("drawing failed: {e}"))
+}
+
+/// The ground, the road surface (shoulders, then driving lanes) and the lane marks.
+fn draw_road<DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    map: &Map,
+    view: &View,
+) -> std::result::Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    area.fill(&GROUND)?;
     // Shoulders first, so driving lanes paint over shared edges.
     for pass_shoulder in [true, false] {
         for lane in map.lanes().iter().filter(|l| l.is_drivable()) {
@@ -203,8 +233,7 @@ fn draw<DB: DrawingBackend>(
             }
             let color = if pass_shoulder { SHOULDER } else { ASPHALT };
             let outline: Vec<_> = lane.polygon().into_iter().map(|p| view.px(p)).collect();
-            area.draw(&Polygon::new(outline, color.filled()))
-                .map_err(fail)?;
+            area.draw(&Polygon::new(outline, color.filled()))?;
         }
     }
     let mark_px = ((0.15 * view.scale).round() as u32).max(1);
@@ -216,14 +245,11 @@ fn draw<DB: DrawingBackend>(
             let style = MARK.stroke_width(mark_px);
             for piece in mark_pieces(line, mark) {
                 let pts: Vec<_> = piece.iter().map(|&p| view.px(p)).collect();
-                area.draw(&PathElement::new(pts, style)).map_err(fail)?;
+                area.draw(&PathElement::new(pts, style))?;
             }
         }
     }
-    if let Some(scene) = scene {
-        draw_agents(&area, scene, view, opts).map_err(fail)?;
-    }
-    area.present().map_err(fail)
+    Ok(())
 }
 
 fn draw_agents<DB: DrawingBackend>(
@@ -235,13 +261,7 @@ fn draw_agents<DB: DrawingBackend>(
     let now = scene.current_step();
     let line_px = ((0.3 * view.scale).round() as u32).max(1);
     for agent in &scene.agents {
-        let color = if opts.highlight.contains(&agent.track_id) {
-            HIGHLIGHT
-        } else if agent.role == AgentRole::Controlled {
-            CONTROLLED
-        } else {
-            REPLAYED
-        };
+        let color = agent_color(agent, opts);
         let points = |range: std::ops::Range<usize>| -> Vec<(i32, i32)> {
             range
                 .filter(|&i| agent.valid[i])
@@ -268,6 +288,17 @@ fn draw_agents<DB: DrawingBackend>(
         }
     }
     Ok(())
+}
+
+/// An agent's colour: highlighted, controlled or replayed.
+fn agent_color(agent: &SceneAgent, opts: &RenderOptions) -> RGBColor {
+    if opts.highlight.contains(&agent.track_id) {
+        HIGHLIGHT
+    } else if agent.role == AgentRole::Controlled {
+        CONTROLLED
+    } else {
+        REPLAYED
+    }
 }
 
 /// The visible pieces of a lane boundary with a given mark: the whole line for solid marks,
