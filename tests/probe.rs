@@ -193,3 +193,33 @@ fn an_unknown_probe_task_is_refused_by_name() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("--tasks") && err.contains("swim"), "{err}");
 }
+
+/// `--warm-start` is read with `--config` too (it replaces the run file's `[init] policy`): a
+/// warm start that is not a model is refused by that flag's name, not silently ignored.
+#[test]
+fn a_warm_start_beside_a_run_file_is_used_not_ignored() {
+    let dir = tempfile::tempdir().unwrap();
+    let run_file = dir.path().join("probe.toml");
+    std::fs::write(&run_file, "method = \"RL\"\n").unwrap();
+    let not_a_model = dir.path().join("empty");
+    std::fs::create_dir(&not_a_model).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_rtr"))
+        .args([
+            "probe",
+            "ppo",
+            "--config",
+            run_file.to_str().unwrap(),
+            "--warm-start",
+            not_a_model.to_str().unwrap(),
+            "--tasks",
+            "credit",
+        ])
+        .output()
+        .expect("rtr runs");
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("--warm-start") && err.contains("config.toml"),
+        "{err}"
+    );
+}

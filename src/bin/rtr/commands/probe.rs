@@ -25,9 +25,10 @@ pub struct PpoProbeArgs {
     #[arg(long, default_value = "brake,recover,credit", value_delimiter = ',')]
     tasks: Vec<String>,
     /// The policy PPO starts from (a model folder or policy.bpk with its run's config.toml);
-    /// its sigma is measured on the logs (`init.std_from_logs`).
-    #[arg(long, default_value = "models/il_ff", conflicts_with = "small")]
-    warm_start: PathBuf,
+    /// its sigma is measured on the logs (`init.std_from_logs`). With --config it replaces
+    /// the run file's `[init] policy` [default: models/il_ff]
+    #[arg(long, conflicts_with = "small")]
+    warm_start: Option<PathBuf>,
     /// Start from a fresh small network (the tests' size) instead of a warm start.
     #[arg(long)]
     small: bool,
@@ -94,24 +95,47 @@ pub fn run(command: ProbeCommand) -> Result<()> {
 fn base_config(args: &PpoProbeArgs) -> Result<TrainConfig> {
     if let Some(path) = &args.config {
         rtr::io::check_input_file(path, "--config")?;
-        return TrainConfig::from_toml_file(path);
+        let mut config = TrainConfig::from_toml_file(path)?;
+        if let Some(warm_start) = &args.warm_start {
+            check_warm_start(warm_start)?;
+            let policy = std::path::absolute(warm_start).map_err(|e| Error::io(warm_start, e))?;
+            config.init = Some(match config.init {
+                Some(init) => InitConfig { policy, ..init },
+                None => default_init(policy),
+            });
+        }
+        return Ok(config);
     }
     let mut config = TrainConfig::from_toml_str("method = \"RL\"\n", "the probes' default run")?;
     if args.small {
         config.model = ModelConfig::small();
         return Ok(config);
     }
-    let run_file = warm_start_config(&args.warm_start)?;
-    rtr::io::check_input_file(&run_file, "--warm-start")?;
-    config.model = TrainConfig::from_toml_file(&run_file)?.model;
-    config.init = Some(InitConfig {
-        policy: args.warm_start.clone(),
+    let warm_start = args
+        .warm_start
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("models/il_ff"));
+    config.model = TrainConfig::from_toml_file(&check_warm_start(&warm_start)?)?.model;
+    config.init = Some(default_init(warm_start));
+    Ok(config)
+}
+
+/// Starts from `policy` with the sigma measured on the logs.
+fn default_init(policy: PathBuf) -> InitConfig {
+    InitConfig {
+        policy,
         std_from_logs: true,
         std_scale: [1.0, 1.0],
         add_agent_edge_motion: false,
         agent_edge_motion_scale: 1.0,
-    });
-    Ok(config)
+    }
+}
+
+/// The run file beside the warm start, checked as an input of --warm-start.
+fn check_warm_start(warm_start: &std::path::Path) -> Result<PathBuf> {
+    let run_file = warm_start_config(warm_start)?;
+    rtr::io::check_input_file(&run_file, "--warm-start")?;
+    Ok(run_file)
 }
 
 /// The run's `config.toml` beside a model folder or policy file (it names the model size).
