@@ -109,7 +109,14 @@ pub fn read(path: &Path) -> Result<Vec<CurveRow>> {
     // The header is the columns `push` writes, so a foreign file is refused even without rows.
     let header = reader.headers().map_err(|e| csv_error(path, e))?.clone();
     let expected = columns();
-    if header.iter().ne(expected.iter().map(String::as_str)) {
+    // Files written before the newest columns existed lack them; those read as their default.
+    let known =
+        header.len() >= expected.len() - COLUMNS_ADDED_LATER && header.len() <= expected.len();
+    if !known
+        || header
+            .iter()
+            .ne(expected.iter().take(header.len()).map(String::as_str))
+    {
         return Err(Error::Parse {
             source_name: path.display().to_string(),
             line: 1,
@@ -137,6 +144,9 @@ fn csv_error(path: &Path, e: csv::Error) -> Error {
     }
 }
 
+/// Trailing columns of [`CurveRow`] that older curve files do not have (`approx_kl`).
+const COLUMNS_ADDED_LATER: usize = 1;
+
 /// The column names `push` writes: the header csv gives a serialised row.
 fn columns() -> Vec<String> {
     let mut writer = csv::Writer::from_writer(Vec::new());
@@ -145,4 +155,37 @@ fn columns() -> Vec<String> {
     let text = String::from_utf8_lossy(&bytes);
     let header = text.lines().next().unwrap_or_default();
     header.split(',').map(str::to_string).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A curve file written before `approx_kl` existed (every shipped model's) still reads, the
+    /// missing column as 0; a header that is neither is refused.
+    #[test]
+    fn older_curve_files_read_and_foreign_ones_do_not() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let mut columns = columns();
+        assert_eq!(columns.pop().as_deref(), Some("approx_kl"));
+        let row: Vec<String> = (0..columns.len())
+            .map(|k| {
+                if [0, 1, 2, 16, 17].contains(&k) {
+                    "1".into()
+                } else {
+                    "0.5".into()
+                }
+            })
+            .collect();
+        let old = dir.path().join("old.csv");
+        std::fs::write(&old, format!("{}\n{}\n", columns.join(","), row.join(","))).unwrap();
+        let rows = read(&old).expect("an older file reads");
+        assert_eq!(rows.len(), 1);
+        assert_eq!((rows[0].iteration, rows[0].approx_kl), (1, 0.0));
+
+        columns.pop();
+        let foreign = dir.path().join("foreign.csv");
+        std::fs::write(&foreign, format!("{}\n", columns.join(","))).unwrap();
+        assert!(read(&foreign).is_err());
+    }
 }
