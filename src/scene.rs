@@ -93,11 +93,32 @@ impl Scene {
 }
 
 /// Fixed-width neighbour lists as tensors: `index[b, l, k]` is the k-th neighbour of lane node
-/// `l` in scene `b`, valid where `mask[b, l, k]`.
+/// `l` in scene `b`, valid where `mask[b, l, k]`. The same table stays on the host too: which
+/// lane nodes a step needs is decided there ([`crate::model::LaneCrop`]).
 #[derive(Debug, Clone)]
 pub struct NeighbourTensors {
     pub index: Tensor<3, Int>,
     pub mask: Tensor<3, Bool>,
+    pub host: Arc<HostNeighbours>,
+}
+
+/// [`NeighbourTensors`] on the host, row-major `[B, L, width]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HostNeighbours {
+    pub width: usize,
+    pub index: Vec<i64>,
+    pub mask: Vec<bool>,
+}
+
+impl HostNeighbours {
+    /// The valid neighbours of lane node `node` in scene `scene` of a batch of `nodes` lane
+    /// slots per scene.
+    pub fn of(&self, scene: usize, nodes: usize, node: usize) -> impl Iterator<Item = usize> + '_ {
+        let start = (scene * nodes + node) * self.width;
+        (start..start + self.width)
+            .filter(|&i| self.mask[i])
+            .map(|i| self.index[i] as usize)
+    }
 }
 
 /// Scenes padded into tensors on one device.
@@ -253,6 +274,16 @@ impl SceneBatch {
     pub fn max_lane_nodes(&self) -> usize {
         self.lane_mask.dims()[1]
     }
+
+    /// The lane relations on the host, in [`crate::model::LaneInput::relations`]' order.
+    pub fn lane_relations_host(&self) -> [&HostNeighbours; 4] {
+        [
+            &self.lane_successors.host,
+            &self.lane_predecessors.host,
+            &self.lane_left.host,
+            &self.lane_right.host,
+        ]
+    }
 }
 
 /// Pads one relation of every scene's lane graph to a common `[B, L, K]` table.
@@ -282,7 +313,12 @@ fn pad_neighbours(
         }
     }
     NeighbourTensors {
-        index: Tensor::from_data(TensorData::new(index, [b, l, k]), device),
-        mask: Tensor::from_data(TensorData::new(mask, [b, l, k]), device),
+        index: Tensor::from_data(TensorData::new(index.clone(), [b, l, k]), device),
+        mask: Tensor::from_data(TensorData::new(mask.clone(), [b, l, k]), device),
+        host: Arc::new(HostNeighbours {
+            width: k,
+            index,
+            mask,
+        }),
     }
 }

@@ -6,7 +6,8 @@ use burn::prelude::*;
 use burn::tensor::{Bool, Int, TensorData};
 
 use super::config::ModelConfig;
-use super::interaction::InteractionEdges;
+use super::interaction::{InteractionEdges, needed_lane_hops};
+use super::lane_crop::CropScope;
 use super::relative_pose::{relative_pose, relative_pose_features};
 use super::steer_feedforward::lane_steer_feedforward;
 use crate::map::LANE_NODE_FEATURES;
@@ -73,6 +74,18 @@ impl AgentInput {
     /// If `frames` is empty; [`crate::sim::logged_frames`] and the rollout always hold the
     /// current frame.
     pub fn from_frames(batch: &SceneBatch, frames: &[Frame], config: &ModelConfig) -> Self {
+        let scope = CropScope::Hops(needed_lane_hops(config));
+        Self::with_lane_scope(batch, frames, config, scope)
+    }
+
+    /// [`Self::from_frames`] with the lane rounds updating the nodes `scope` names
+    /// (`CropScope::WholeGraph`: the uncropped computation, the same outputs).
+    pub fn with_lane_scope(
+        batch: &SceneBatch,
+        frames: &[Frame],
+        config: &ModelConfig,
+        scope: CropScope,
+    ) -> Self {
         let h = config.history_steps;
         let now = frames
             .last()
@@ -113,6 +126,8 @@ impl AgentInput {
             &mask,
             &batch.lane_poses,
             &batch.lane_mask,
+            &batch.lane_relations_host(),
+            scope,
             config,
         );
         let steer_feedforward = config.lane_steer_feedforward.then(|| {

@@ -14,10 +14,12 @@ use burn::tensor::{Bool, Int};
 use super::aggregate::gather_neighbours;
 use super::config::ModelConfig;
 use super::input::LaneInput;
+use super::lane_crop::{CropInputs, CropScope, LaneCrop};
 use super::lane_encoder::{LANE_RELATIONS, lane_messages};
 use super::message::{EdgeMessage, NodeUpdate};
 use super::relative_motion::relative_motion;
 use super::relative_pose::relative_pose;
+use crate::scene::HostNeighbours;
 
 /// Distance given to padded or absent nodes so nearest-neighbour choices rank them last.
 const FAR: f64 = 1e9;
@@ -29,11 +31,14 @@ pub struct InteractionEdges {
     /// `agent_edge_motion`) and `[B, N, N]` mask (no self edges).
     agent_agent_pose: Tensor<4>,
     agent_agent_mask: Tensor<3, Bool>,
-    /// Agent <- its closest lane nodes: `[B, N, K]`.
+    /// Agent <- its closest lane nodes: `[B, N, K]` (node indices of the whole graph).
     agent_lane_index: Tensor<3, Int>,
     agent_lane_pose: Tensor<4>,
     agent_lane_mask: Tensor<3, Bool>,
-    /// Lane node <- its closest agents within the radius: `[B, L, K]`.
+    /// The lane nodes the lane rounds update (`None` without lane rounds), and each of those
+    /// nodes' closest agents within the radius: `[1, M, K]` over the crop's flat node list
+    /// (agent index scene x N + agent), or `[B, L, K]` without a crop.
+    crop: Option<LaneCrop>,
     lane_agent_index: Tensor<3, Int>,
     lane_agent_pose: Tensor<4>,
     lane_agent_mask: Tensor<3, Bool>,
@@ -89,12 +94,17 @@ impl Nearest {
 
 impl InteractionEdges {
     /// The edges of agents in `agent_state` / `agent_mask` (`[B, N, 4]`: x, y, heading, speed /
-    /// `[B, N]`) on the lane graph at `lane_pose` / `lane_mask` (`[B, L, 3]` / `[B, L]`).
+    /// `[B, N]`) on the lane graph at `lane_pose` / `lane_mask` (`[B, L, 3]` / `[B, L]`) whose
+    /// relations are `lane_relations` ([`LaneInput::relations`]' order). The lane rounds will
+    /// update the nodes `scope` names (see [`super::lane_crop`]; `CropScope::Hops` with
+    /// [`needed_lane_hops`] is exact).
     pub fn build(
         agent_state: &Tensor<3>,
         agent_mask: &Tensor<2, Bool>,
         lane_pose: &Tensor<3>,
         lane_mask: &Tensor<2, Bool>,
+        lane_relations: &[&HostNeighbours],
+        scope: CropScope,
         config: &ModelConfig,
     ) -> Self {
         let agent_pose = &agent_state.clone().narrow(2, 0, 3);
@@ -159,6 +169,34 @@ impl InteractionEdges {
             .distance
             .lower_equal_elem(config.lane_agent_radius)
             .bool_and(lane_agent.mask);
+        let crop = (config.interaction_rounds >= 2).then(|| {
+            LaneCrop::build(
+                &CropInputs {
+                    agent_lane_index: &host_indices(&agent_lane.index),
+                    agent_lane_mask: &host_flags(agent_lane.mask.clone()),
+                    agent_mask: &host_flags(agent_mask.clone().unsqueeze_dim::<3>(2)),
+                    shape: agent_lane.index.dims(),
+                    lane_nodes: l,
+                    relations: lane_relations,
+                    scope,
+                },
+                &device,
+            )
+        });
+        // The cropped nodes' agent edges point into the batch's agents as one flat list.
+        let (lane_agent_index, lane_agent_pose, lane_agent_mask) = match &crop {
+            Some(crop) => {
+                let offset = Tensor::<1, Int>::arange(0..b as i64, &device)
+                    .mul_scalar(n as i64)
+                    .reshape([b, 1, 1]);
+                (
+                    crop.rows_int(lane_agent.index + offset),
+                    crop.rows(lane_agent.pose),
+                    crop.rows_bool(lane_agent_mask),
+                )
+            }
+            None => (lane_agent.index, lane_agent.pose, lane_agent_mask),
+        };
 
         Self {
             agent_agent_pose,
@@ -166,11 +204,36 @@ impl InteractionEdges {
             agent_lane_index: agent_lane.index,
             agent_lane_pose: agent_lane.pose,
             agent_lane_mask: agent_lane.mask,
-            lane_agent_index: lane_agent.index,
-            lane_agent_pose: lane_agent.pose,
+            crop,
+            lane_agent_index,
+            lane_agent_pose,
             lane_agent_mask,
         }
     }
+
+    /// Lane nodes the lane rounds update, over the whole batch.
+    pub fn lane_round_nodes(&self) -> usize {
+        self.lane_agent_index.dims()[1]
+    }
+}
+
+/// The lane hops beyond the agents' nearest nodes that `config`'s lane rounds must update.
+pub fn needed_lane_hops(config: &ModelConfig) -> usize {
+    config.interaction_rounds.saturating_sub(2)
+}
+
+fn host_indices(t: &Tensor<3, Int>) -> Vec<i64> {
+    t.clone()
+        .into_data()
+        .convert::<i64>()
+        .try_into_vec::<i64>()
+        .expect("integer node indices")
+}
+
+fn host_flags(t: Tensor<3, Bool>) -> Vec<bool> {
+    t.into_data()
+        .try_into_vec_as::<bool>()
+        .expect("boolean masks")
 }
 
 /// One round's update of the agent nodes.
@@ -190,46 +253,65 @@ struct LaneRound {
 }
 
 impl AgentRound {
-    /// `projected_lanes`: the lane features already through `from_lanes`' sender projection
-    /// (the first round's, cached per rollout), else projected here.
+    /// `from_lanes`: this round's aggregated lane messages, `[B, N, C]`.
     fn forward(
         &self,
         agents: Tensor<3>,
-        lanes: Tensor<3>,
+        from_lanes: Tensor<3>,
         edges: &InteractionEdges,
-        projected_lanes: Option<Tensor<3>>,
     ) -> Tensor<3> {
-        let projected = projected_lanes.unwrap_or_else(|| self.from_lanes.project(lanes));
         let messages = self.from_agents.aggregate_dense(
             agents.clone(),
             edges.agent_agent_pose.clone(),
             edges.agent_agent_mask.clone(),
-        ) + self.from_lanes.aggregate_projected(
+        ) + from_lanes;
+        self.update.forward(agents, messages)
+    }
+
+    /// Messages from the lane encoding of the whole graph `[B, L, C]` (`projected`: already
+    /// through the sender weights).
+    fn whole_graph_messages(&self, projected: Tensor<3>, edges: &InteractionEdges) -> Tensor<3> {
+        self.from_lanes.aggregate_projected(
             projected,
             edges.agent_lane_index.clone(),
             edges.agent_lane_pose.clone(),
             edges.agent_lane_mask.clone(),
+        )
+    }
+
+    /// Messages from the cropped lane nodes `[1, M, C]`.
+    fn crop_messages(
+        &self,
+        lanes: Tensor<3>,
+        crop: &LaneCrop,
+        edges: &InteractionEdges,
+    ) -> Tensor<3> {
+        let [b, n, k, p] = edges.agent_lane_pose.dims();
+        let messages = self.from_lanes.aggregate_projected(
+            self.from_lanes.project(lanes),
+            crop.agent_lane_index(),
+            edges.agent_lane_pose.clone().reshape([1, b * n, k, p]),
+            edges.agent_lane_mask.clone().reshape([1, b * n, k]),
         );
-        self.update.forward(agents, messages)
+        let c = messages.dims()[2];
+        messages.reshape([b, n, c])
     }
 }
 
 impl LaneRound {
-    /// `lane_lane`: the summed lane -> lane messages when already known (the first round's,
-    /// cached per rollout), else computed here.
+    /// The cropped nodes `lanes` (`[1, M, C]`) updated from `lane_lane` (their lane-lane
+    /// messages) and the batch's agents.
     fn forward(
         &self,
         agents: Tensor<3>,
         lanes: Tensor<3>,
-        lane_input: &LaneInput,
+        lane_lane: Tensor<3>,
         edges: &InteractionEdges,
-        lane_lane: Option<Tensor<3>>,
     ) -> Tensor<3> {
-        let lane_lane =
-            lane_lane.unwrap_or_else(|| lane_messages(&self.from_lanes, lanes.clone(), lane_input));
+        let [b, n, c] = agents.dims();
         let messages = lane_lane
             + self.from_agents.aggregate(
-                agents,
+                agents.reshape([1, b * n, c]),
                 edges.lane_agent_index.clone(),
                 edges.lane_agent_pose.clone(),
                 edges.lane_agent_mask.clone(),
@@ -329,13 +411,14 @@ impl HeteroGnn {
             lane_round_lanes: self
                 .lane_rounds
                 .first()
-                .map(|round| lane_messages(&round.from_lanes, lanes, lane_input)),
+                .map(|round| lane_messages(&round.from_lanes, lanes, &lane_input.relations)),
         })
     }
 
     /// Agent features `[B, N, C]` and lane features `[B, L, C]` -> fused agent features
     /// `[B, N, C]` (the agents' input features when there are no rounds). `cached` must come
-    /// from [`Self::static_lane_terms`] of the same `lanes` and parameters.
+    /// from [`Self::static_lane_terms`] of the same `lanes` and parameters. The lane rounds
+    /// update only the nodes of `edges`' crop (see [`super::lane_crop`]).
     pub fn forward(
         &self,
         agents: Tensor<3>,
@@ -344,23 +427,52 @@ impl HeteroGnn {
         edges: &InteractionEdges,
         cached: Option<&StaticLaneTerms>,
     ) -> Tensor<3> {
-        let (mut a, mut m) = (agents, lanes);
+        let crop = edges.crop.as_ref();
+        // The crop's lane relations, for the lane rounds after the first.
+        let cropped_relations = crop
+            .filter(|_| self.lane_rounds.len() > 1)
+            .map(|crop| crop.relations(&lane_input.relations));
+        let mut a = agents;
+        // The cropped nodes' features after the last lane round, `[1, M, C]`.
+        let mut m: Option<Tensor<3>> = None;
         for (r, agent_round) in self.agent_rounds.iter().enumerate() {
-            let first = cached.filter(|_| r == 0);
-            let next_a = agent_round.forward(
-                a.clone(),
-                m.clone(),
-                edges,
-                first.map(|c| c.agent_round_lanes.clone()),
-            );
-            if let Some(lane_round) = self.lane_rounds.get(r) {
-                m = lane_round.forward(
-                    a,
-                    m,
-                    lane_input,
+            let from_lanes = match &m {
+                // The first round reads the lane encoding itself, of the whole graph.
+                None => agent_round.whole_graph_messages(
+                    match cached {
+                        Some(c) => c.agent_round_lanes.clone(),
+                        None => agent_round.from_lanes.project(lanes.clone()),
+                    },
                     edges,
-                    first.and_then(|c| c.lane_round_lanes.clone()),
-                );
+                ),
+                Some(m) => agent_round.crop_messages(
+                    m.clone(),
+                    crop.expect("lane rounds come with a crop"),
+                    edges,
+                ),
+            };
+            let next_a = agent_round.forward(a.clone(), from_lanes, edges);
+            if let Some(lane_round) = self.lane_rounds.get(r) {
+                let crop = crop.expect("edges built for this network's rounds");
+                let (nodes, lane_lane) = match m.take() {
+                    None => {
+                        let whole = match cached.and_then(|c| c.lane_round_lanes.clone()) {
+                            Some(messages) => messages,
+                            None => lane_messages(
+                                &lane_round.from_lanes,
+                                lanes.clone(),
+                                &lane_input.relations,
+                            ),
+                        };
+                        (crop.rows(lanes.clone()), crop.rows(whole))
+                    }
+                    Some(m) => {
+                        let relations = cropped_relations.as_ref().expect("built above");
+                        let messages = lane_messages(&lane_round.from_lanes, m.clone(), relations);
+                        (m, messages)
+                    }
+                };
+                m = Some(lane_round.forward(a, nodes, lane_lane, edges));
             }
             a = next_a;
         }
@@ -392,8 +504,21 @@ mod tests {
                 agent_edge_motion_gain: gain,
                 ..ModelConfig::small()
             };
-            InteractionEdges::build(&agents, &agent_mask, &lanes, &lane_mask, &config)
-                .agent_agent_pose
+            let unlinked = HostNeighbours {
+                width: 1,
+                index: vec![0; b * l],
+                mask: vec![false; b * l],
+            };
+            InteractionEdges::build(
+                &agents,
+                &agent_mask,
+                &lanes,
+                &lane_mask,
+                &[&unlinked; 4],
+                CropScope::Hops(needed_lane_hops(&config)),
+                &config,
+            )
+            .agent_agent_pose
         };
         let (unit, tenfold) = (edges(1.0), edges(10.0));
         let width = unit.dims()[3];

@@ -7,7 +7,7 @@ use burn::nn::{LayerNorm, LayerNormConfig, Linear, LinearConfig};
 use burn::prelude::*;
 use burn::tensor::activation::relu;
 
-use super::input::LaneInput;
+use super::input::{LaneInput, LaneRelation};
 use super::message::{EdgeMessage, NodeUpdate};
 use super::rowwise::rowwise;
 use crate::map::LANE_NODE_FEATURES;
@@ -60,17 +60,21 @@ impl LaneGraphEncoder {
 
 impl LaneLayer {
     fn forward(&self, h: Tensor<3>, lanes: &LaneInput) -> Tensor<3> {
-        let messages = lane_messages(&self.relations, h.clone(), lanes);
+        let messages = lane_messages(&self.relations, h.clone(), &lanes.relations);
         self.update.forward(h, messages)
     }
 }
 
 /// Sum over the four relations of their max-aggregated messages (also used by the HeteroGNN,
 /// which keeps the lane-lane edges).
-pub fn lane_messages(relations: &[EdgeMessage], h: Tensor<3>, lanes: &LaneInput) -> Tensor<3> {
-    relations
+pub fn lane_messages(
+    messages: &[EdgeMessage],
+    h: Tensor<3>,
+    relations: &[LaneRelation],
+) -> Tensor<3> {
+    messages
         .iter()
-        .zip(&lanes.relations)
+        .zip(relations)
         .map(|(message, edges)| {
             message.aggregate(
                 h.clone(),

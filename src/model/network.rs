@@ -392,6 +392,7 @@ mod tests {
 
     use super::*;
     use crate::map::{LaneGraph, Map, ProceduralMap};
+    use crate::model::interaction::needed_lane_hops;
     use crate::scene::{Scene, SceneBatch};
     use crate::sim::bench::synthetic_scene;
     use crate::sim::logged_frames;
@@ -575,5 +576,94 @@ mod tests {
         };
         let (gw, gwo) = (norm(&grads_with), norm(&grads_without));
         assert!(gw > 0.0 && (gw - gwo).abs() <= 1e-5 * gw, "{gw} vs {gwo}");
+    }
+
+    /// Every parameter gradient of a module, flattened in visiting order.
+    struct AllGradients<'g> {
+        grads: &'g GradientsParams,
+        values: Vec<f32>,
+    }
+
+    impl burn::module::ModuleVisitor for AllGradients<'_> {
+        fn visit_float<const D: usize>(&mut self, param: &burn::module::Param<Tensor<D>>) {
+            if let Some(g) = self.grads.get::<D>(param.id) {
+                self.values.extend(
+                    g.into_data()
+                        .convert::<f32>()
+                        .iter::<f32>()
+                        .collect::<Vec<_>>(),
+                );
+            }
+        }
+    }
+
+    /// The lane rounds updating only the nodes the agents can read (scenes of 1, 2 and 6 agents
+    /// on a merge, so crops of different sizes share one flat list) give the same actions,
+    /// values and parameter gradients as updating the whole lane graph, for two, three and
+    /// four interaction rounds; and the crop is smaller than the graph.
+    #[test]
+    fn cropped_lane_rounds_match_the_whole_graph() {
+        use crate::model::lane_crop::CropScope;
+        #[allow(deprecated)]
+        let device = Device::ndarray().autodiff();
+        let od = ProceduralMap::preset("on_ramp_merge")
+            .and_then(|p| p.build())
+            .expect("map");
+        let map = Arc::new(Map::from_opendrive(&od, "merge").expect("map"));
+        let graph = Arc::new(LaneGraph::build(&map, 10.0));
+        let scenes: Vec<Scene> = [1, 2, 6]
+            .iter()
+            .enumerate()
+            .map(|(k, &agents)| synthetic_scene(&map, &graph, agents, k, 4, 1))
+            .collect();
+        let refs: Vec<&Scene> = scenes.iter().collect();
+        let batch = SceneBatch::from_scenes(&refs, &device).expect("batch");
+        let frames = logged_frames(&batch, batch.history_steps);
+        for rounds in [2, 3, 4] {
+            let config = ModelConfig {
+                interaction_rounds: rounds,
+                ..narrow_config()
+            };
+            let policy = PolicyNetwork::new(&config, &device);
+            let value = ValueNetwork::new(&config, &device);
+            let lanes = LaneInput::from_batch(&batch, &config);
+            let run = |scope: CropScope| {
+                let agents = AgentInput::with_lane_scope(&batch, &frames, &config, scope);
+                let nodes = agents.edges.lane_round_nodes();
+                let dist = policy.forward(&agents, &lanes, &policy.encode_lanes(&lanes));
+                let v = value.forward(&agents, &lanes, &value.encode_lanes(&lanes));
+                let (mean, log_std) = (values(dist.mean.clone()), values(dist.log_std.clone()));
+                let loss = (dist.mean.sin() * dist.log_std).sum() + v.powi_scalar(2).sum();
+                let grads = GradientsParams::from_grads(loss.backward(), &policy);
+                let mut all = AllGradients {
+                    grads: &grads,
+                    values: Vec::new(),
+                };
+                policy.visit(&mut all);
+                (nodes, mean, log_std, all.values)
+            };
+            let (whole_nodes, mean, log_std, grads) = run(CropScope::WholeGraph);
+            let (cropped_nodes, c_mean, c_log_std, c_grads) =
+                run(CropScope::Hops(needed_lane_hops(&config)));
+            assert_eq!(whole_nodes, 3 * batch.max_lane_nodes());
+            assert!(
+                cropped_nodes < whole_nodes,
+                "{rounds} rounds: crop {cropped_nodes} of {whole_nodes}"
+            );
+            let close = |a: &[f32], b: &[f32], what: &str| {
+                assert_eq!(a.len(), b.len(), "{what}");
+                let scale = a.iter().fold(1e-3f32, |m, x| m.max(x.abs()));
+                for (i, (x, y)) in a.iter().zip(b).enumerate() {
+                    assert!(
+                        (x - y).abs() <= 1e-4 * scale,
+                        "{rounds} rounds, {what}[{i}]: {x} vs {y}"
+                    );
+                }
+            };
+            close(&mean, &c_mean, "mean");
+            close(&log_std, &c_log_std, "log_std");
+            assert!(grads.iter().any(|g| *g != 0.0));
+            close(&grads, &c_grads, "gradient");
+        }
     }
 }

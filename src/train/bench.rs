@@ -10,7 +10,7 @@ use std::time::Instant;
 use indicatif::ProgressBar;
 use serde::Serialize;
 
-use super::config::{Method, TrainConfig};
+use super::config::{Method, PpoConfig, TrainConfig};
 use super::session::{devices, training_data};
 use super::trainer::{IterationTiming, Trainer};
 use crate::backend::Backend;
@@ -58,11 +58,14 @@ struct Timed {
     peak_rss_mb: Option<f64>,
 }
 
-/// The run config `bench_training` times `method` with, validated.
+/// The run config `bench_training` times `method` with, validated: the default run of that
+/// method with `model` and `ppo`'s settings, at the given batch sizes.
+#[allow(clippy::too_many_arguments)]
 fn bench_config(
     method: Method,
     backend: Backend,
     model: &ModelConfig,
+    ppo: &PpoConfig,
     il_minibatch: usize,
     ppo_batch: usize,
     ppo_minibatch: usize,
@@ -71,6 +74,9 @@ fn bench_config(
     let mut config =
         TrainConfig::from_toml_str(&format!("method = \"{}\"", method.name()), "bench")?;
     config.model = model.clone();
+    config.ppo = ppo.clone();
+    // The timed iteration is a full one: policy and value both step.
+    config.ppo.value_warmup_iterations = 0;
     config.run.backend = backend;
     config.run.max_iterations = Some(1);
     config.imitation.minibatch = il_minibatch;
@@ -86,6 +92,7 @@ fn bench_config(
 pub fn check_settings(
     backend: Backend,
     model: &ModelConfig,
+    ppo: &PpoConfig,
     il_minibatch: usize,
     ppo_batch: usize,
     ppo_minibatch: usize,
@@ -96,6 +103,7 @@ pub fn check_settings(
             method,
             backend,
             model,
+            ppo,
             il_minibatch,
             ppo_batch,
             ppo_minibatch,
@@ -106,10 +114,12 @@ pub fn check_settings(
 }
 
 /// Times one IL step and one RL (factorized PPO) iteration.
+#[allow(clippy::too_many_arguments)]
 pub fn bench_training(
     dataset: &A9Dataset,
     backend: Backend,
     model: ModelConfig,
+    ppo: &PpoConfig,
     il_minibatch: usize,
     ppo_batch: usize,
     ppo_minibatch: usize,
@@ -120,6 +130,7 @@ pub fn bench_training(
             method,
             backend,
             &model,
+            ppo,
             il_minibatch,
             ppo_batch,
             ppo_minibatch,

@@ -1,5 +1,6 @@
 //! `rtr bench`: simulator, network and training throughput benchmarks, printed as JSON.
 
+use std::path::PathBuf;
 use std::sync::Arc;
 
 use clap::{Args, Subcommand};
@@ -8,6 +9,7 @@ use rtr::backend::Backend;
 use rtr::data::a9;
 use rtr::map::Map;
 use rtr::model::ModelConfig;
+use rtr::train::{PpoConfig, TrainConfig};
 use rtr::{Error, Result};
 
 use super::args::{DataArgs, count, device_count};
@@ -33,8 +35,12 @@ pub struct TrainBenchArgs {
     #[arg(long, default_value_t = Backend::cpu_default())]
     backend: Backend,
     /// The small network of the tests instead of the paper's (hidden 128).
-    #[arg(long)]
+    #[arg(long, conflicts_with = "config")]
     small: bool,
+    /// A run file whose `[model]` and `[ppo]` settings are timed (e.g. the main table's
+    /// `experiments/main/rtr.toml`) instead of the defaults; its other sections are ignored.
+    #[arg(long)]
+    config: Option<PathBuf>,
     #[arg(long, default_value_t = 32, value_parser = count(1, 4096))]
     il_minibatch: usize,
     #[arg(long, default_value_t = 192, value_parser = count(1, 4096))]
@@ -72,15 +78,20 @@ pub struct BenchArgs {
 pub fn run(command: BenchCommand) -> Result<()> {
     let report = match command {
         BenchCommand::Train(args) => {
-            let model = if args.small {
-                ModelConfig::small()
-            } else {
-                ModelConfig::default()
+            let (model, ppo) = match &args.config {
+                Some(path) => {
+                    rtr::io::check_input_file(path, "--config")?;
+                    let run = TrainConfig::from_toml_file(path)?;
+                    (run.model, run.ppo)
+                }
+                None if args.small => (ModelConfig::small(), PpoConfig::default()),
+                None => (ModelConfig::default(), PpoConfig::default()),
             };
             let devices = device_count(args.devices, args.backend)?;
             rtr::train::bench::check_settings(
                 args.backend,
                 &model,
+                &ppo,
                 args.il_minibatch,
                 args.ppo_batch,
                 args.ppo_minibatch,
@@ -90,6 +101,7 @@ pub fn run(command: BenchCommand) -> Result<()> {
                 &args.data.load()?,
                 args.backend,
                 model,
+                &ppo,
                 args.il_minibatch,
                 args.ppo_batch,
                 args.ppo_minibatch,
