@@ -87,6 +87,27 @@ pub struct ModelConfig {
     /// warm-start either way.
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub lane_steer_feedforward: bool,
+    /// Not in the paper (its value network is the policy's architecture): the value network's
+    /// hidden width, its decoder layers all this wide too, with the policy's layers and rounds.
+    /// A PPO agent-step evaluates both networks in collection and in the update, so a narrower
+    /// value network is a direct saving; `None` (default): the policy's widths.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub value_hidden: Option<usize>,
+}
+
+impl ModelConfig {
+    /// The value network's architecture: this one, at [`Self::value_hidden`]'s width if set.
+    pub fn value_network(&self) -> ModelConfig {
+        match self.value_hidden {
+            Some(width) => ModelConfig {
+                hidden: width,
+                head_hidden: vec![width; self.head_hidden.len()],
+                value_hidden: None,
+                ..self.clone()
+            },
+            None => self.clone(),
+        }
+    }
 }
 
 fn is_true(flag: &bool) -> bool {
@@ -125,6 +146,7 @@ impl Default for ModelConfig {
             lane_curvature_scale: DEFAULT_LANE_CURVATURE_SCALE,
             lane_speed_limit_input: true,
             lane_steer_feedforward: false,
+            value_hidden: None,
         }
     }
 }
@@ -165,6 +187,7 @@ impl ModelConfig {
         };
         let positive = [
             ("hidden", self.hidden),
+            ("value_hidden", self.value_hidden.unwrap_or(self.hidden)),
             ("history_steps", self.history_steps),
             ("history_kernel", self.history_kernel),
             ("agent_lane_edges", self.agent_lane_edges),
@@ -178,6 +201,11 @@ impl ModelConfig {
         // Catches typos (an extra zero) before they become a multi-gigabyte allocation.
         let bounded = [
             ("hidden", self.hidden, MAX_WIDTH),
+            (
+                "value_hidden",
+                self.value_hidden.unwrap_or(self.hidden),
+                MAX_WIDTH,
+            ),
             ("history_steps", self.history_steps, MAX_STEPS),
             ("history_kernel", self.history_kernel, MAX_STEPS),
             ("history_blocks", self.history_blocks, MAX_LAYERS),
@@ -336,5 +364,38 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(err.contains("log_std_range"), "{err}");
+
+        for bad in ["value_hidden = 0\n", "value_hidden = 1280000\n"] {
+            let err = ModelConfig::from_toml_str(bad, "m.toml")
+                .unwrap_err()
+                .to_string();
+            assert!(err.contains("value_hidden"), "{bad}: {err}");
+        }
+    }
+
+    /// The value network's width replaces the hidden and decoder widths and nothing else, is
+    /// written only when set, and reads back.
+    #[test]
+    fn value_width_narrows_only_the_value_network() {
+        let config = ModelConfig::from_toml_str("value_hidden = 32\n", "m.toml").unwrap();
+        let value = config.value_network();
+        assert_eq!((value.hidden, value.head_hidden.clone()), (32, vec![32; 3]));
+        assert_eq!(
+            ModelConfig {
+                hidden: 128,
+                head_hidden: vec![128; 3],
+                value_hidden: Some(32),
+                ..value
+            },
+            config
+        );
+        let text = toml::to_string(&config).unwrap();
+        assert_eq!(ModelConfig::from_toml_str(&text, "m.toml").unwrap(), config);
+        let default = toml::to_string(&ModelConfig::default()).unwrap();
+        assert!(!default.contains("value_hidden"), "{default}");
+        assert_eq!(
+            ModelConfig::default().value_network(),
+            ModelConfig::default()
+        );
     }
 }

@@ -257,11 +257,14 @@ pub struct ValueNetwork {
 
 /// What both networks offer besides their forward pass.
 macro_rules! shared_network_methods {
-    ($network:ty, $outputs:expr) => {
+    ($network:ty, $outputs:expr, $architecture:expr) => {
         impl $network {
+            /// The network of the run's model config `config` (for the value network, at
+            /// [`ModelConfig::value_hidden`]'s width).
             pub fn new(config: &ModelConfig, device: &Device) -> Self {
+                let architecture: fn(&ModelConfig) -> ModelConfig = $architecture;
                 Self {
-                    network: EncoderWithHead::new(config, $outputs, device),
+                    network: EncoderWithHead::new(&architecture(config), $outputs, device),
                 }
             }
 
@@ -283,8 +286,8 @@ macro_rules! shared_network_methods {
 }
 
 // Mean and log sigma of the two controls; one value.
-shared_network_methods!(PolicyNetwork, 4);
-shared_network_methods!(ValueNetwork, 1);
+shared_network_methods!(PolicyNetwork, 4, ModelConfig::clone);
+shared_network_methods!(ValueNetwork, 1, ModelConfig::value_network);
 
 /// Width of the relative-motion inputs of an agent <- agent edge under `config`.
 fn agent_edge_motion_features(config: &ModelConfig) -> usize {
@@ -665,5 +668,30 @@ mod tests {
             assert!(grads.iter().any(|g| *g != 0.0));
             close(&grads, &c_grads, "gradient");
         }
+    }
+
+    /// A narrower value network (`value_hidden`) has fewer parameters, reads the inputs built
+    /// for the policy's config, and gives one value per agent.
+    #[test]
+    fn a_narrower_value_network_reads_the_policy_inputs() {
+        #[allow(deprecated)]
+        let device = Device::ndarray();
+        let batch = merge_batch(&device);
+        let config = ModelConfig {
+            value_hidden: Some(8),
+            ..narrow_config()
+        };
+        let value = ValueNetwork::new(&config, &device);
+        assert!(value.num_params() < ValueNetwork::new(&narrow_config(), &device).num_params());
+        assert_eq!(
+            PolicyNetwork::new(&config, &device).num_params(),
+            PolicyNetwork::new(&narrow_config(), &device).num_params()
+        );
+        let lanes = LaneInput::from_batch(&batch, &config);
+        let agents =
+            AgentInput::from_frames(&batch, &logged_frames(&batch, batch.history_steps), &config);
+        let v = value.forward(&agents, &lanes, &value.encode_lanes(&lanes));
+        assert_eq!(v.dims(), [batch.batch_size(), batch.max_agents()]);
+        assert!(v.abs().sum().into_scalar::<f32>() > 0.0);
     }
 }
