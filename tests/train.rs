@@ -818,6 +818,27 @@ fn rtr_at_lambda_zero_waits_out_the_warm_up_then_imitates() {
 /// only a config), a `state.json` edited to claim another position, a tensor file changed
 /// after it was written; and a policy with NaN weights is refused by name wherever it is
 /// loaded.
+/// A model loaded with another run's [model] (a warm start beside a run file of the paper's
+/// size) is refused with what to change, not as a broken file.
+#[test]
+fn a_model_loaded_with_another_shape_names_the_model_section() {
+    #[allow(deprecated)]
+    let device = burn::prelude::Device::ndarray();
+    let small = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/il/policy.bpk");
+    let paper_size = rtr::model::ModelConfig::default();
+    let err = rtr::train::load_policy(&small, &paper_size, &device).expect_err("32 into 128");
+    let text = err.to_string();
+    assert!(
+        text.contains("models/il/policy.bpk")
+            && text.contains("[model]")
+            && text.contains("config.toml")
+            && text.contains("expected Shape")
+            && !text.contains("this version of rtr"),
+        "{text}"
+    );
+    assert!(text.len() < 600, "one mismatch is named, not all: {text}");
+}
+
 #[test]
 fn resume_and_loading_refuse_missing_tampered_and_corrupted_checkpoints() {
     let config = || tiny("IL", "", "");

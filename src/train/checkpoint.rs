@@ -72,6 +72,32 @@ fn record_error(path: &Path, e: impl std::fmt::Display) -> Error {
     )
 }
 
+/// A record that does not fit the module: when only shapes differ the file is fine and the
+/// network it is loaded into is not, so say that (with the first mismatch, not all of them).
+fn load_error(path: &Path, message: &str) -> Error {
+    let mismatches: Vec<&str> = message
+        .split("\", \"")
+        .filter(|m| m.contains("shape mismatch"))
+        .collect();
+    match mismatches.first() {
+        Some(first) => Error::invalid(
+            path.display().to_string(),
+            "checkpoint",
+            format!(
+                "its network has another shape than the [model] it is loaded with ({} of its \
+                 parameters differ, first {}): load it with the [model] section of the run \
+                 that wrote it (its config.toml)",
+                mismatches.len(),
+                first
+                    .rsplit('"')
+                    .find(|part| part.contains("shape mismatch"))
+                    .unwrap_or(first)
+            ),
+        ),
+        None => record_error(path, message),
+    }
+}
+
 fn read_bytes(path: &Path) -> Result<Bytes> {
     Ok(Bytes::from_bytes_vec(
         std::fs::read(path).map_err(|e| Error::io(path, e))?,
@@ -144,7 +170,7 @@ pub fn load_module<M: Module>(module: M, path: &Path) -> Result<M> {
     let record = ModuleRecord::from_bytes(read_bytes(path)?).map_err(|e| record_error(path, e))?;
     let module = module
         .try_load_record(record)
-        .map_err(|e| record_error(path, e))?;
+        .map_err(|e| load_error(path, &e.to_string()))?;
     check_finite(&module, path)?;
     Ok(module)
 }
