@@ -6,9 +6,9 @@
 //!   reward) from a warm start on one task's scenarios and measure held-out draws of the same
 //!   families before and after: the share of cars with an infraction under the mean action,
 //!   and the training reward of sampled rollouts;
-//! - *credit* checks on the brake task's experience that the surrogate's gradient pushes the
-//!   acceleration towards braking and leaves the steering, which cannot help there, without a
-//!   direction ([`credit`]).
+//! - *credit* checks, on scenes where only the acceleration can change the outcome (a slow
+//!   car, a car standing ahead), that the surrogate's gradient pushes the acceleration towards
+//!   braking and leaves the steering without a direction ([`credit`]).
 
 pub mod credit;
 pub mod measure;

@@ -10,14 +10,15 @@ use crate::scenario::{ConcreteScenario, GenerateConfig, LogicalScenario, generat
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum ProbeTask {
-    /// A car ahead brakes hard to a stop, or stands still, on a one-lane straight road: the
-    /// right behaviour is to brake in time.
+    /// A car ahead brakes to a stop, or stands still, on a one-lane straight road: the right
+    /// behaviour is to brake in time (gently for some draws, hard for others).
     Brake,
     /// A lone car starts off its lane's centre and heading out of it on a curve: the right
     /// behaviour is to steer back into the lane.
     Recover,
-    /// The brake task's experience: the PPO gradient must push the acceleration towards
-    /// braking and leave the steering (which cannot help there) without a direction.
+    /// A slow car with a car standing ahead on a one-lane road, where only the acceleration
+    /// can change the outcome: the PPO gradient must push the acceleration towards braking
+    /// and leave the steering without a direction.
     Credit,
 }
 
@@ -42,10 +43,10 @@ impl ProbeTask {
             })
     }
 
-    /// The families whose scenarios pose the task (credit reuses the brake scenes).
+    /// The families whose scenarios pose the task.
     fn family_sources(self) -> &'static [(&'static str, &'static str)] {
         match self {
-            ProbeTask::Brake | ProbeTask::Credit => &[
+            ProbeTask::Brake => &[
                 (
                     "scenarios/probes/probe_brake_lead.toml",
                     include_str!("../../../scenarios/probes/probe_brake_lead.toml"),
@@ -55,6 +56,10 @@ impl ProbeTask {
                     include_str!("../../../scenarios/probes/probe_stopped_car.toml"),
                 ),
             ],
+            ProbeTask::Credit => &[(
+                "scenarios/probes/probe_credit_stop.toml",
+                include_str!("../../../scenarios/probes/probe_credit_stop.toml"),
+            )],
             ProbeTask::Recover => &[
                 (
                     "scenarios/probes/probe_recover_left.toml",
