@@ -15,6 +15,33 @@ fn stats() -> TrafficStatistics {
     TrafficStatistics::from_recording(&a9.recording, &a9.map, 1.0)
 }
 
+/// A probe draw of one controlled car behind one scripted car on a one-lane straight road that
+/// the IDM reference driver solves (the answer is known and reachable): the gap between them
+/// along the road (m), and their speeds (m/s).
+fn car_behind_car_on_one_lane(s: &rtr::scenario::ConcreteScenario) -> (f64, f64, f64) {
+    let roles: Vec<AgentRole> = s.agents.iter().map(|a| a.role).collect();
+    assert_eq!(
+        roles,
+        [AgentRole::Controlled, AgentRole::Hero],
+        "{}",
+        s.id()
+    );
+    assert!(
+        matches!(s.map, rtr::map::ProceduralMap::Straight { lanes: 1, .. }),
+        "{}",
+        s.id()
+    );
+    assert!(
+        s.reference.collided_agents.is_empty() && s.reference.offroad_agents.is_empty(),
+        "{}: the reference driver fails: {:?}",
+        s.id(),
+        s.reference
+    );
+    let [tx, ty, th, tv] = s.agents[0].states.last().unwrap().unwrap();
+    let [hx, hy, _, hv] = s.agents[1].states.last().unwrap().unwrap();
+    ((hx - tx) * th.cos() + (hy - ty) * th.sin(), tv, hv)
+}
+
 #[test]
 fn brake_scenarios_put_a_braking_or_standing_car_ahead_on_a_one_lane_road() {
     let sets = probe_scenarios(ProbeTask::Brake, &stats(), 8, 8, 3).expect("draws");
@@ -27,34 +54,13 @@ fn brake_scenarios_put_a_braking_or_standing_car_ahead_on_a_one_lane_road() {
         "both brake families held out: {families:?}"
     );
     for s in sets.train.iter().chain(&sets.eval) {
-        let roles: Vec<AgentRole> = s.agents.iter().map(|a| a.role).collect();
-        assert_eq!(
-            roles,
-            [AgentRole::Controlled, AgentRole::Hero],
-            "{}",
-            s.id()
-        );
-        assert!(
-            matches!(s.map, rtr::map::ProceduralMap::Straight { lanes: 1, .. }),
-            "{}",
-            s.id()
-        );
-        let [tx, ty, th, tv] = s.agents[0].states.last().unwrap().unwrap();
-        let [hx, hy, _, hv] = s.agents[1].states.last().unwrap().unwrap();
-        let ahead = (hx - tx) * th.cos() + (hy - ty) * th.sin();
+        let (ahead, tv, hv) = car_behind_car_on_one_lane(s);
         assert!(
             (25.0..260.0).contains(&ahead),
             "{}: hero {ahead} m ahead",
             s.id()
         );
         assert!(tv > 20.0 && hv <= tv + 1.0, "{}: speeds {tv} {hv}", s.id());
-        // The IDM reference brakes in time: the task has a known, reachable answer.
-        assert!(
-            s.reference.collided_agents.is_empty() && s.reference.offroad_agents.is_empty(),
-            "{}: the reference driver fails: {:?}",
-            s.id(),
-            s.reference
-        );
     }
 }
 
@@ -62,34 +68,14 @@ fn brake_scenarios_put_a_braking_or_standing_car_ahead_on_a_one_lane_road() {
 fn credit_scenarios_put_a_standing_car_ahead_of_a_slow_car_on_a_one_lane_road() {
     let sets = probe_scenarios(ProbeTask::Credit, &stats(), 8, 8, 3).expect("draws");
     for s in sets.train.iter().chain(&sets.eval) {
-        let roles: Vec<AgentRole> = s.agents.iter().map(|a| a.role).collect();
-        assert_eq!(
-            roles,
-            [AgentRole::Controlled, AgentRole::Hero],
-            "{}",
-            s.id()
-        );
-        assert!(
-            matches!(s.map, rtr::map::ProceduralMap::Straight { lanes: 1, .. }),
-            "{}",
-            s.id()
-        );
-        let [tx, ty, th, tv] = s.agents[0].states.last().unwrap().unwrap();
-        let [hx, hy, _, hv] = s.agents[1].states.last().unwrap().unwrap();
-        let ahead = (hx - tx) * th.cos() + (hy - ty) * th.sin();
         // Slow enough that the steering noise barely moves the car sideways; the car ahead
         // stands, so only braking changes the outcome.
+        let (ahead, tv, hv) = car_behind_car_on_one_lane(s);
         assert!((50.0..=90.0).contains(&ahead), "{}: {ahead} m", s.id());
         assert!(
             (10.0..=15.0).contains(&tv) && hv == 0.0,
             "{}: {tv} {hv}",
             s.id()
-        );
-        assert!(
-            s.reference.collided_agents.is_empty() && s.reference.offroad_agents.is_empty(),
-            "{}: the reference driver fails: {:?}",
-            s.id(),
-            s.reference
         );
     }
 }
@@ -162,6 +148,22 @@ fn a_target_pose_error_out_of_range_names_the_field() {
     );
 }
 
+/// `rtr probe ppo ARGS --json`, which must succeed; its one JSON object.
+fn probe_json(args: &[&str]) -> serde_json::Value {
+    let out = Command::new(env!("CARGO_BIN_EXE_rtr"))
+        .args(["probe", "ppo"])
+        .args(args)
+        .arg("--json")
+        .output()
+        .expect("rtr runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("stdout is one JSON object")
+}
+
 #[test]
 fn the_probe_command_prints_one_json_object_per_task() {
     // A fresh small network and a small PPO batch: the shape of the report, quickly.
@@ -173,29 +175,16 @@ fn the_probe_command_prints_one_json_object_per_task() {
          head_hidden = [32, 32, 32]\n[ppo]\nbatch = 8\nminibatch = 8\n",
     )
     .unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_rtr"))
-        .args([
-            "probe",
-            "ppo",
-            "--config",
-            run_file.to_str().unwrap(),
-            "--tasks",
-            "credit",
-            "--train-scenarios",
-            "2",
-            "--eval-scenarios",
-            "8",
-            "--json",
-        ])
-        .output()
-        .expect("rtr runs");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let json: serde_json::Value =
-        serde_json::from_slice(&out.stdout).expect("stdout is one JSON object");
+    let json = probe_json(&[
+        "--config",
+        run_file.to_str().unwrap(),
+        "--tasks",
+        "credit",
+        "--train-scenarios",
+        "2",
+        "--eval-scenarios",
+        "8",
+    ]);
     let tasks = json["tasks"].as_array().expect("tasks array");
     assert_eq!(tasks.len(), 1);
     let credit = &tasks[0];
@@ -267,25 +256,19 @@ fn small_probe(task: &str, iterations: usize) -> serde_json::Value {
         "{}/experiments/ppo_probes/small_{task}.toml",
         env!("CARGO_MANIFEST_DIR")
     );
-    let out = Command::new(env!("CARGO_BIN_EXE_rtr"))
-        .args(["probe", "ppo", "--config", &run_file, "--tasks", task])
-        .args(["--iterations", &iterations.to_string()])
-        .args([
-            "--eval-scenarios",
-            "32",
-            "--train-scenarios",
-            "64",
-            "--json",
-        ])
-        .output()
-        .expect("rtr runs");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let json: serde_json::Value =
-        serde_json::from_slice(&out.stdout).expect("stdout is one JSON object");
+    let iterations = iterations.to_string();
+    let json = probe_json(&[
+        "--config",
+        &run_file,
+        "--tasks",
+        task,
+        "--iterations",
+        &iterations,
+        "--eval-scenarios",
+        "32",
+        "--train-scenarios",
+        "64",
+    ]);
     json["tasks"][0].clone()
 }
 
