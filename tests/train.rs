@@ -814,10 +814,6 @@ fn rtr_at_lambda_zero_waits_out_the_warm_up_then_imitates() {
     assert_ne!(policy_values(&run, &config), initial);
 }
 
-/// Resume refuses what it cannot continue: a folder without a checkpoint (empty, or holding
-/// only a config), a `state.json` edited to claim another position, a tensor file changed
-/// after it was written; and a policy with NaN weights is refused by name wherever it is
-/// loaded.
 /// A model loaded with another run's [model] (a warm start beside a run file of the paper's
 /// size) is refused with what to change, not as a broken file.
 #[test]
@@ -839,6 +835,10 @@ fn a_model_loaded_with_another_shape_names_the_model_section() {
     assert!(text.len() < 600, "one mismatch is named, not all: {text}");
 }
 
+/// Resume refuses what it cannot continue: a folder without a checkpoint (empty, or holding
+/// only a config), a `state.json` edited to claim another position, a tensor file changed
+/// after it was written; and a policy with NaN weights is refused by name wherever it is
+/// loaded.
 #[test]
 fn resume_and_loading_refuse_missing_tampered_and_corrupted_checkpoints() {
     let config = || tiny("IL", "", "");

@@ -74,6 +74,8 @@ fn record_error(path: &Path, e: impl std::fmt::Display) -> Error {
 
 /// A record that does not fit the module: when only shapes differ the file is fine and the
 /// network it is loaded into is not, so say that (with the first mismatch, not all of them).
+/// Reads burn's "Apply errors: [\"...\", \"...\"]" list; any other message keeps the
+/// generic wording.
 fn load_error(path: &Path, message: &str) -> Error {
     let mismatches: Vec<&str> = message
         .split("\", \"")
