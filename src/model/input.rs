@@ -5,6 +5,7 @@
 use burn::prelude::*;
 use burn::tensor::{Bool, Int, TensorData};
 
+use super::agent_rows::{AgentPacking, AgentRows};
 use super::config::ModelConfig;
 use super::interaction::{InteractionEdges, needed_lane_hops};
 use super::lane_crop::CropScope;
@@ -50,9 +51,9 @@ pub fn history_features(config: &ModelConfig) -> usize {
 /// The agents at the current step.
 #[derive(Debug, Clone)]
 pub struct AgentInput {
-    /// `[B, N, H, F]`: for each of the last H frames (oldest first, the current one last), the
-    /// agent's pose then seen from its current pose, its speed, a present flag, and its box
-    /// size; zeros (but the size) where it was not present.
+    /// `[B, N', H, F]` in `rows`' packed layout: for each of the last H frames (oldest first,
+    /// the current one last), the agent's pose then seen from its current pose, its speed, a
+    /// present flag, and its box size; zeros (but the size) where it was not present.
     pub history: Tensor<4>,
     /// `[B, N, 3]`: box centre x, y and heading now.
     pub pose: Tensor<3>,
@@ -61,9 +62,12 @@ pub struct AgentInput {
     /// `[B, N]`: the steering (rad) that follows each agent's lane, added to the policy's
     /// steering mean; `None` unless `ModelConfig::lane_steer_feedforward`.
     pub steer_feedforward: Option<Tensor<2>>,
-    /// The HeteroGNN's agent-side edges on the batch's lane graph: built here once, so the
-    /// policy and the value network share them, and stored observations (PPO) keep them.
+    /// The HeteroGNN's agent-side edges on the batch's lane graph, between `rows`' packed
+    /// agents: built here once, so the policy and the value network share them, and stored
+    /// observations (PPO) keep them.
     pub edges: InteractionEdges,
+    /// Which of the `[B, N]` slots the networks compute (the agents in `mask`), packed.
+    pub rows: AgentPacking,
 }
 
 impl AgentInput {
@@ -85,6 +89,18 @@ impl AgentInput {
         frames: &[Frame],
         config: &ModelConfig,
         scope: CropScope,
+    ) -> Self {
+        Self::with_scope(batch, frames, config, scope, AgentRows::Present)
+    }
+
+    /// [`Self::with_lane_scope`] computing the agent `rows` named (`AgentRows::All`: every
+    /// padded slot, the same outputs).
+    pub fn with_scope(
+        batch: &SceneBatch,
+        frames: &[Frame],
+        config: &ModelConfig,
+        scope: CropScope,
+        rows: AgentRows,
     ) -> Self {
         let h = config.history_steps;
         let now = frames
@@ -121,9 +137,10 @@ impl AgentInput {
             .unsqueeze_dim::<4>(2)
             .expand([b, n, h, 2]);
         let mask = batch.agent_mask.clone().bool_and(now.present.clone());
+        let rows = AgentPacking::new(&mask, rows);
         let edges = InteractionEdges::build(
-            &now.poses,
-            &mask,
+            &rows.pack(now.poses.clone()),
+            rows.mask(),
             &batch.lane_poses,
             &batch.lane_mask,
             &batch.lane_relations_host(),
@@ -145,11 +162,12 @@ impl AgentInput {
             .mask_fill(mask.clone().bool_not(), 0.0)
         });
         Self {
-            history: Tensor::cat(vec![motion, valid, size], 3),
+            history: rows.pack(Tensor::cat(vec![motion, valid, size], 3)),
             pose: pose_now,
             mask,
             steer_feedforward,
             edges,
+            rows,
         }
     }
 

@@ -4,6 +4,7 @@
 //! - [`input`]: viewpoint-invariant inputs from a [`crate::scene::SceneBatch`] and the frames of
 //!   a rollout ([`relative_pose`] encodes one pose seen from another, [`relative_motion`] one
 //!   agent's motion relative to another's);
+//! - [`agent_rows`]: the networks compute only the agents present now, packed;
 //! - [`history`]: 1D residual CNN + GRU -> h_a per agent;
 //! - [`lane_encoder`]: LaneGCN over successor / predecessor / left / right -> h_m per lane node;
 //! - [`interaction`]: HeteroGNN over agents and lane nodes -> fused h_i per agent;
@@ -16,6 +17,7 @@
 //! - [`weight_average`]: the mean of several checkpoints' parameters (stochastic weight
 //!   averaging).
 
+pub mod agent_rows;
 pub mod aggregate;
 pub mod bench;
 pub mod config;

@@ -161,8 +161,9 @@ impl SceneEncoder {
         }
     }
 
-    /// Fused agent features `[B, N, hidden]`, zero for agents outside `agents.mask`.
-    /// `encoded` must come from [`Self::encode_lanes`] of `lanes` with these parameters.
+    /// Fused agent features `[B, N', hidden]` in `agents.rows`' packed layout, zero in rows
+    /// without an agent. `encoded` must come from [`Self::encode_lanes`] of `lanes` with these
+    /// parameters.
     pub fn forward(
         &self,
         agents: &AgentInput,
@@ -177,7 +178,10 @@ impl SceneEncoder {
             &agents.edges,
             encoded.cached.as_ref(),
         );
-        fused.mask_fill(agents.mask.clone().bool_not().unsqueeze_dim::<3>(2), 0.0)
+        fused.mask_fill(
+            agents.rows.mask().clone().bool_not().unsqueeze_dim::<3>(2),
+            0.0,
+        )
     }
 
     pub fn config(&self) -> &ModelConfig {
@@ -236,10 +240,12 @@ impl EncoderWithHead {
         }
     }
 
-    /// `[B, N, outputs]`.
+    /// `[B, N, outputs]`, zero in slots without an agent.
     fn forward(&self, agents: &AgentInput, lanes: &LaneInput, encoded: &EncodedLanes) -> Tensor<3> {
-        self.head
-            .forward(self.encoder.forward(agents, lanes, encoded))
+        let packed = self
+            .head
+            .forward(self.encoder.forward(agents, lanes, encoded));
+        agents.rows.unpack(packed)
     }
 }
 
@@ -392,6 +398,7 @@ mod tests {
     use std::sync::Arc;
 
     use burn::optim::GradientsParams;
+    use burn::tensor::{Bool, TensorData};
 
     use super::*;
     use crate::map::{LaneGraph, Map, ProceduralMap};
@@ -633,40 +640,129 @@ mod tests {
             let run = |scope: CropScope| {
                 let agents = AgentInput::with_lane_scope(&batch, &frames, &config, scope);
                 let nodes = agents.edges.lane_round_nodes();
-                let dist = policy.forward(&agents, &lanes, &policy.encode_lanes(&lanes));
-                let v = value.forward(&agents, &lanes, &value.encode_lanes(&lanes));
-                let (mean, log_std) = (values(dist.mean.clone()), values(dist.log_std.clone()));
-                let loss = (dist.mean.sin() * dist.log_std).sum() + v.powi_scalar(2).sum();
-                let grads = GradientsParams::from_grads(loss.backward(), &policy);
-                let mut all = AllGradients {
-                    grads: &grads,
-                    values: Vec::new(),
-                };
-                policy.visit(&mut all);
-                (nodes, mean, log_std, all.values)
+                (
+                    nodes,
+                    outputs_and_gradients(&policy, &value, &agents, &lanes),
+                )
             };
-            let (whole_nodes, mean, log_std, grads) = run(CropScope::WholeGraph);
-            let (cropped_nodes, c_mean, c_log_std, c_grads) =
-                run(CropScope::Hops(needed_lane_hops(&config)));
+            let (whole_nodes, whole) = run(CropScope::WholeGraph);
+            let (cropped_nodes, cropped) = run(CropScope::Hops(needed_lane_hops(&config)));
             assert_eq!(whole_nodes, 3 * batch.max_lane_nodes());
             assert!(
                 cropped_nodes < whole_nodes,
                 "{rounds} rounds: crop {cropped_nodes} of {whole_nodes}"
             );
+            whole.assert_close(&cropped, &format!("{rounds} rounds"));
+        }
+    }
+
+    /// A policy's and a value network's outputs on some agents, and their parameters'
+    /// gradients of a loss that reads every output.
+    struct OutputsAndGradients {
+        mean: Vec<f32>,
+        log_std: Vec<f32>,
+        value: Vec<f32>,
+        gradients: Vec<f32>,
+    }
+
+    impl OutputsAndGradients {
+        fn assert_close(&self, other: &Self, case: &str) {
             let close = |a: &[f32], b: &[f32], what: &str| {
-                assert_eq!(a.len(), b.len(), "{what}");
+                assert_eq!(a.len(), b.len(), "{case}, {what}");
                 let scale = a.iter().fold(1e-3f32, |m, x| m.max(x.abs()));
                 for (i, (x, y)) in a.iter().zip(b).enumerate() {
                     assert!(
                         (x - y).abs() <= 1e-4 * scale,
-                        "{rounds} rounds, {what}[{i}]: {x} vs {y}"
+                        "{case}, {what}[{i}]: {x} vs {y}"
                     );
                 }
             };
-            close(&mean, &c_mean, "mean");
-            close(&log_std, &c_log_std, "log_std");
-            assert!(grads.iter().any(|g| *g != 0.0));
-            close(&grads, &c_grads, "gradient");
+            close(&self.mean, &other.mean, "mean");
+            close(&self.log_std, &other.log_std, "log_std");
+            close(&self.value, &other.value, "value");
+            assert!(self.gradients.iter().any(|g| *g != 0.0), "{case}");
+            close(&self.gradients, &other.gradients, "gradient");
+        }
+    }
+
+    fn outputs_and_gradients(
+        policy: &PolicyNetwork,
+        value: &ValueNetwork,
+        agents: &AgentInput,
+        lanes: &LaneInput,
+    ) -> OutputsAndGradients {
+        let dist = policy.forward(agents, lanes, &policy.encode_lanes(lanes));
+        let v = value.forward(agents, lanes, &value.encode_lanes(lanes));
+        let (mean, log_std) = (values(dist.mean.clone()), values(dist.log_std.clone()));
+        let value_out = values(v.clone().unsqueeze_dim::<3>(2));
+        let loss = (dist.mean.sin() * dist.log_std).sum() + v.powi_scalar(2).sum();
+        let mut grads = loss.backward();
+        let mut all = AllGradients {
+            grads: &GradientsParams::from_module(&mut grads, policy),
+            values: Vec::new(),
+        };
+        policy.visit(&mut all);
+        let mut gradients = all.values;
+        let mut all = AllGradients {
+            grads: &GradientsParams::from_module(&mut grads, value),
+            values: Vec::new(),
+        };
+        value.visit(&mut all);
+        gradients.extend(all.values);
+        OutputsAndGradients {
+            mean,
+            log_std,
+            value: value_out,
+            gradients,
+        }
+    }
+
+    /// Computing only the agents present now (packed) gives the padded computation's actions,
+    /// values and parameter gradients, with and without relative-motion edges, where a scene
+    /// has agents absent at the current step and another has padding slots.
+    #[test]
+    fn packed_agent_rows_match_the_padded_computation() {
+        use crate::model::agent_rows::AgentRows;
+        use crate::model::lane_crop::CropScope;
+        #[allow(deprecated)]
+        let device = Device::ndarray().autodiff();
+        let batch = merge_batch(&device);
+        let mut frames = logged_frames(&batch, batch.history_steps);
+        // Scenes of 4, 5 and 6 agents; agents 1 and 3 of the last scene have left the road.
+        let [b, n] = batch.agent_mask.dims();
+        let mut present: Vec<bool> = frames
+            .last()
+            .expect("current frame")
+            .present
+            .clone()
+            .into_data()
+            .try_into_vec_as::<bool>()
+            .expect("flags");
+        present[2 * n + 1] = false;
+        present[2 * n + 3] = false;
+        let now = frames.last_mut().expect("current frame");
+        now.present = Tensor::<2, Bool>::from_data(TensorData::new(present, [b, n]), &device);
+        for agent_edge_motion in [false, true] {
+            let config = ModelConfig {
+                agent_edge_motion,
+                lane_steer_feedforward: agent_edge_motion,
+                ..narrow_config()
+            };
+            let policy = PolicyNetwork::new(&config, &device);
+            let value = ValueNetwork::new(&config, &device);
+            let lanes = LaneInput::from_batch(&batch, &config);
+            let scope = CropScope::Hops(needed_lane_hops(&config));
+            let run = |rows: AgentRows| {
+                let agents = AgentInput::with_scope(&batch, &frames, &config, scope, rows);
+                (
+                    agents.rows.rows(),
+                    outputs_and_gradients(&policy, &value, &agents, &lanes),
+                )
+            };
+            let (padded_rows, padded) = run(AgentRows::All);
+            let (packed_rows, packed) = run(AgentRows::Present);
+            assert_eq!((padded_rows, packed_rows), (6, 5));
+            packed.assert_close(&padded, &format!("edge motion {agent_edge_motion}"));
         }
     }
 
