@@ -288,7 +288,7 @@ fn assert_learned(report: &serde_json::Value) {
 
 #[test]
 fn ppo_learns_to_steer_back_into_the_lane() {
-    assert_learned(&small_probe("recover", 80));
+    assert_learned(&small_probe("recover", 160));
 }
 
 #[test]
