@@ -70,8 +70,14 @@ mod tests {
         }
         std::hint::black_box(x);
         let busy = meter.cores_busy().expect("linux has /proc");
-        // One spinning thread (other test threads may add to the process's time).
-        assert!(busy > 0.5, "{busy}");
+        // One spinning thread: other test threads may add to the process's time, and other
+        // processes on a loaded machine may take most of a core from it, so the bounds say only
+        // that the time was counted (not 0) in cores (not in ticks or ms).
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get()) as f64;
+        assert!(
+            busy > 0.1 && busy <= cores + 0.5,
+            "{busy} cores busy of {cores}"
+        );
         assert!(peak_rss_mb().expect("linux") > 0.0);
     }
 }
