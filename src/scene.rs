@@ -11,10 +11,10 @@ use std::sync::Arc;
 use burn::prelude::*;
 use burn::tensor::{Bool, Int, TensorData};
 
-use crate::data::{AgentState, VehicleClass};
 use crate::error::{Error, Result};
 use crate::geometry::OrientedBox;
 use crate::map::{LANE_NODE_FEATURES, LaneGraph, Map, neighbour_table};
+use crate::vehicle::{AgentState, VehicleClass};
 
 /// Per-step agent features in `SceneBatch::agent_states`, in this order.
 pub const AGENT_STATE_FEATURES: [&str; 5] = ["x", "y", "heading", "speed", "accel"];

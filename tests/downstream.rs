@@ -6,7 +6,6 @@
 mod common;
 
 use burn::prelude::*;
-use rtr::eval::downstream::{DownstreamConfig, downstream};
 use rtr::eval::evaluate::rollout_scenes;
 use rtr::eval::study::Entry;
 use rtr::eval::{EvalConfig, EvalScenes};
@@ -14,6 +13,7 @@ use rtr::predict::sample::{HORIZON_STEPS, INPUT_SIZE};
 use rtr::predict::{FitConfig, PredictionSample, PredictorConfig, fit, scene_samples, score};
 use rtr::scene::Scene;
 use rtr::sim::{Dynamics, replay_logs};
+use rtr::studies::downstream::{DownstreamConfig, downstream};
 
 #[allow(deprecated)]
 fn cpu() -> Device {

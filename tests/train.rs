@@ -340,7 +340,7 @@ fn reference_policy(dir: &Path) -> String {
     #[allow(deprecated)]
     let device = burn::prelude::Device::ndarray();
     let path = dir.join("reference.bpk");
-    rtr::train::trainer::with_seeded_device(&device, 99, || {
+    rtr::seeding::with_seeded_device(&device, 99, || {
         rtr::model::PolicyNetwork::new(&config.model, &device).save_file(&path)
     })
     .expect("save reference");

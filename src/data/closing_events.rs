@@ -4,15 +4,14 @@
 //!
 //! A *closing event* is a follower, sampled every [`SAMPLE_DT_S`], whose leader (the nearest
 //! vehicle ahead in its lane, as the evaluation's lead-gap feature finds it,
-//! [`crate::eval::features::leader`]) is slower by more than [`CLOSING_SPEED_MS`] with under
+//! [`crate::agent_view::leader`]) is slower by more than [`CLOSING_SPEED_MS`] with under
 //! [`TIME_TO_CONTACT_S`] to contact at the current speeds. Each follower counts at most once
 //! per [`RESPONSE_S`], and only where it is still logged that long after. Its response over that
 //! window is a lane change (its logged lane label changes), else braking (its speed falls by
 //! more than [`SLOWED_MS`]), else neither.
 
+use crate::agent_view::{AgentView, leader};
 use crate::data::Recording;
-use crate::driver::AgentView;
-use crate::eval::features::leader;
 
 /// Sampling step over the recording (s): the simulator's.
 pub const SAMPLE_DT_S: f64 = 0.5;

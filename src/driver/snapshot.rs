@@ -1,32 +1,8 @@
 //! The host-side picture of one step that rule-based drivers work from: every agent's box
 //! centre, heading, speed and size, read back from the observation once per step.
 
-use crate::geometry::OrientedBox;
+pub use crate::agent_view::AgentView;
 use crate::sim::Observation;
-
-/// One agent at one step.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct AgentView {
-    /// Box centre (m).
-    pub x: f64,
-    pub y: f64,
-    pub heading: f64,
-    pub speed: f64,
-    pub length: f64,
-    pub width: f64,
-    pub present: bool,
-}
-
-impl AgentView {
-    pub fn footprint(&self) -> OrientedBox {
-        OrientedBox::new([self.x, self.y], self.heading, self.length, self.width)
-    }
-
-    /// Unit vector along the heading.
-    pub fn direction(&self) -> [f64; 2] {
-        [self.heading.cos(), self.heading.sin()]
-    }
-}
 
 /// Every agent of every scene of a batch at the current step: `agents[b * n + i]`.
 #[derive(Debug, Clone)]

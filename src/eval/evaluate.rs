@@ -151,7 +151,7 @@ pub fn realism_tallies(
         let scenes: Vec<&Scene> = group.iter().map(|&k| &set.scenes[k]).collect();
         let mut sampled = Vec::with_capacity(config.realism_samples);
         for k in 0..config.realism_samples {
-            let seed = crate::train::trainer::stream_seed(config.seed, g, k as u64);
+            let seed = crate::seeding::stream_seed(config.seed, g, k as u64);
             let (_, out) = rollout_group(policy, dynamics, set, group, device, caches, Some(seed))?;
             sampled.push(simulated_features(&scenes, &out));
         }
@@ -349,7 +349,7 @@ pub fn simulate_set(
     noise: Option<u64>,
 ) -> Result<Vec<Scene>> {
     per_scene(set, config, |caches, g, group| {
-        let seed = noise.map(|s| crate::train::trainer::stream_seed(s, g, 0));
+        let seed = noise.map(|s| crate::seeding::stream_seed(s, g, 0));
         let (_, out) = rollout_group(policy, dynamics, set, group, device, caches, seed)?;
         let scenes: Vec<&Scene> = group.iter().map(|&k| &set.scenes[k]).collect();
         Ok(rollout_scenes(&scenes, &out))

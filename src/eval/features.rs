@@ -7,7 +7,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::histogram::Histogram;
-use crate::driver::AgentView;
+pub use crate::agent_view::{AgentView, LEAD_LATERAL_M, LEAD_RANGE_M, lead_gap, leader};
 use crate::map::Map;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
@@ -22,12 +22,6 @@ pub enum Feature {
     /// Bumper-to-bumper gap to the nearest vehicle ahead in the same lane (m).
     LeadDistance,
 }
-
-/// A vehicle ahead counts as the leader when its centre is within this of the follower's
-/// centre line (half a lane).
-pub const LEAD_LATERAL_M: f64 = 1.75;
-/// Leaders further than this (centre to centre) are not looked for.
-pub const LEAD_RANGE_M: f64 = 100.0;
 
 impl Feature {
     pub const ALL: [Feature; 4] = [
@@ -66,30 +60,6 @@ impl Feature {
             Feature::LeadDistance => Histogram::new(0.0, 100.0, 50),
         }
     }
-}
-
-/// The gap from vehicle `me` to the nearest present vehicle ahead of it in its lane:
-/// longitudinal distance in `me`'s frame minus both half-lengths.
-pub fn lead_gap(me: usize, vehicles: &[AgentView]) -> Option<f64> {
-    leader(me, vehicles).map(|(_, gap)| gap)
-}
-
-/// The vehicle [`lead_gap`] measures to: its index and the gap.
-pub fn leader(me: usize, vehicles: &[AgentView]) -> Option<(usize, f64)> {
-    let m = &vehicles[me];
-    let (sin, cos) = m.heading.sin_cos();
-    vehicles
-        .iter()
-        .enumerate()
-        .filter(|&(j, o)| o.present && j != me)
-        .filter_map(|(j, o)| {
-            let (dx, dy) = (o.x - m.x, o.y - m.y);
-            let ahead = dx * cos + dy * sin;
-            let side = -dx * sin + dy * cos;
-            (ahead > 0.0 && ahead <= LEAD_RANGE_M && side.abs() <= LEAD_LATERAL_M)
-                .then(|| (j, (ahead - 0.5 * (m.length + o.length)).max(0.0)))
-        })
-        .min_by(|a, b| a.1.total_cmp(&b.1))
 }
 
 /// Signed lateral deviation from the nearest lane centerline that runs the vehicle's way.

@@ -9,16 +9,14 @@
 //!   drives them, the evaluation;
 //! - [`trained`]: loading a run's policy; [`averaged`]: the weight average of checkpoints;
 //! - [`report`], [`plots`]: tables, JSON, figures;
-//! - [`study`], [`sweep`]: several policies or a lambda x alpha grid end to end;
+//! - [`study`]: several policies evaluated side by side (training them is `crate::studies`);
 //! - [`curate`]: the training scenes a policy fails on (the "Curated" scenario set);
-//! - [`downstream`]: predictors trained on each policy's simulated data, scored on real data;
 //! - [`watch`]: one scene's rollout with its infractions, for an animation.
 
 pub mod averaged;
 pub mod bootstrap;
 pub mod collisions;
 pub mod curate;
-pub mod downstream;
 pub mod evaluate;
 pub mod features;
 pub mod histogram;
@@ -30,7 +28,6 @@ pub mod reconstruction;
 pub mod report;
 pub mod sets;
 pub mod study;
-pub mod sweep;
 pub mod tally;
 pub mod trained;
 pub mod watch;

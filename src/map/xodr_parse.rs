@@ -330,7 +330,7 @@ impl Ctx<'_, '_> {
             }
         };
         let speed = v * factor;
-        let max = crate::data::track::MAX_SPEED;
+        let max = crate::vehicle::MAX_SPEED;
         if !(speed > 0.0 && speed <= max) {
             return Err(self.err(
                 node,

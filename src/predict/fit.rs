@@ -14,8 +14,8 @@ use serde::{Deserialize, Serialize};
 use super::model::{Predictor, PredictorConfig, SampleBatch};
 use super::sample::PredictionSample;
 use crate::error::{Error, Result};
+use crate::seeding::{Materialise, stream_seed, with_seeded_device};
 use crate::sim::loss::huber;
-use crate::train::trainer::{Materialise, stream_seed, with_seeded_device};
 
 /// The training recipe, fixed across the datasets compared.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

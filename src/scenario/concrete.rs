@@ -127,7 +127,7 @@ fn check_agent(source: &str, i: usize, a: &ScenarioAgent) -> Result<()> {
             format!("{} m: expected a vehicle 0.5-5 m wide", a.width),
         );
     }
-    let max_speed = crate::data::track::MAX_SPEED;
+    let max_speed = crate::vehicle::MAX_SPEED;
     for (k, state) in a.states.iter().enumerate() {
         let Some([x, y, heading, speed]) = *state else {
             continue;

@@ -14,13 +14,13 @@
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::evaluate::{EvalConfig, simulate_set};
-use super::sets::{EvalScenes, EvalSet};
-use super::study::{Entry, named_parts};
 use crate::error::Result;
+use crate::eval::evaluate::{EvalConfig, simulate_set};
+use crate::eval::sets::{EvalScenes, EvalSet};
+use crate::eval::study::{Entry, named_parts};
 use crate::predict::{FitConfig, PredictionSample, PredictionScore, fit, scene_samples, score};
 use crate::scene::Scene;
-use crate::train::trainer::stream_seed;
+use crate::seeding::stream_seed;
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct DownstreamConfig {

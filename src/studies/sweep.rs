@@ -7,13 +7,13 @@ use std::path::{Path, PathBuf};
 
 use indicatif::ProgressBar;
 
-use super::evaluate::EvalConfig;
-use super::report::{MethodResult, markdown_table, results_json};
-use super::sets::EvalScenes;
-use super::study::{Entry, evaluate_entries};
-use super::trained::TrainedPolicy;
 use crate::data::A9Dataset;
 use crate::error::{Error, Result};
+use crate::eval::evaluate::EvalConfig;
+use crate::eval::report::{MethodResult, markdown_table, results_json};
+use crate::eval::sets::EvalScenes;
+use crate::eval::study::{Entry, evaluate_entries};
+use crate::eval::trained::TrainedPolicy;
 use crate::io::atomic_write;
 use crate::train::{Method, TrainConfig};
 

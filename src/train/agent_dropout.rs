@@ -18,8 +18,8 @@
 
 use rand::Rng;
 
-use super::trainer::seeded_per_scene;
 use crate::scene::{AgentRole, Scene};
+use crate::seeding::seeded_per_scene;
 
 /// Seed streams above the trainer's own (0, 1, 2 + minibatch) and start perturbation's
 /// (`1 << 32` + slot).

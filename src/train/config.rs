@@ -661,22 +661,27 @@ impl TrainConfig {
 
     /// Checks every range a run depends on; errors name the field.
     pub fn validate(&self, source_name: &str) -> Result<()> {
-        let fail = |field: &str, message: &str| {
-            Err(Error::invalid(
-                source_name,
-                format!("field `{field}`"),
-                message.to_string(),
-            ))
-        };
-        let positive = |x: f64| x.is_finite() && x > 0.0;
+        self.check_data()
+            .and_then(|()| self.check_optimizer())
+            .and_then(|()| self.check_ppo())
+            .and_then(|()| self.check_imitation())
+            .and_then(|()| self.check_reference())
+            .and_then(|()| self.check_init())
+            .and_then(|()| self.check_budget())
+            .map_err(|(field, message)| {
+                Error::invalid(source_name, format!("field `{field}`"), message)
+            })?;
+        self.model.validate(source_name)
+    }
+
+    /// The mixture: alpha, lambda and the recorded sources.
+    fn check_data(&self) -> Check {
         let unit = |x: f64| x.is_finite() && (0.0..=1.0).contains(&x);
-        let o = &self.optimizer;
-        let p = &self.ppo;
         if !unit(self.alpha) {
-            return fail("alpha", "expected a share in [0, 1]");
+            return refuse("alpha", "expected a share in [0, 1]");
         }
         if self.data.curated.is_some() && self.data.longtail_dir.is_some() {
-            return fail(
+            return refuse(
                 "data.curated",
                 "curated scenes replace the long-tail set as the alpha share; drop data.longtail_dir \
                  (or the --scenarios flag)",
@@ -684,12 +689,12 @@ impl TrainConfig {
         }
         let weight = |w: f64| w.is_finite() && w >= 0.0;
         if !weight(self.data.a9_weight) {
-            return fail("data.a9_weight", "expected a finite weight >= 0");
+            return refuse("data.a9_weight", "expected a finite weight >= 0");
         }
         if self.data.commonroad.iter().any(|c| !weight(c.weight)) {
-            return fail("data.commonroad.weight", "expected a finite weight >= 0");
+            return refuse("data.commonroad.weight", "expected a finite weight >= 0");
         }
-        let max_speed = crate::data::track::MAX_SPEED;
+        let max_speed = crate::vehicle::MAX_SPEED;
         if self
             .data
             .commonroad
@@ -697,13 +702,13 @@ impl TrainConfig {
             .filter_map(|c| c.speed_limit)
             .any(|v| !(v > 0.0 && v <= max_speed))
         {
-            return fail(
+            return refuse(
                 "data.commonroad.speed_limit",
-                &format!("expected m/s in (0, {max_speed}]"),
+                format!("expected m/s in (0, {max_speed}]"),
             );
         }
         if self.data.a9_bends.iter().any(|b| !weight(b.weight)) {
-            return fail("data.a9_bends.weight", "expected a finite weight >= 0");
+            return refuse("data.a9_bends.weight", "expected a finite weight >= 0");
         }
         if let Some(problem) = self
             .data
@@ -711,12 +716,12 @@ impl TrainConfig {
             .iter()
             .find_map(|b| crate::map::bend_curvature_problem(b.curvature))
         {
-            return fail("data.a9_bends.curvature", &problem);
+            return refuse("data.a9_bends.curvature", problem);
         }
         let other_weight: f64 = self.data.commonroad.iter().map(|c| c.weight).sum::<f64>()
             + self.data.a9_bends.iter().map(|b| b.weight).sum::<f64>();
         if self.data.a9_weight + other_weight <= 0.0 {
-            return fail(
+            return refuse(
                 "data.a9_weight",
                 "the recorded sources' weights (A9, data.commonroad, data.a9_bends) sum to 0",
             );
@@ -724,133 +729,164 @@ impl TrainConfig {
         if self.data.curated.is_some()
             && !(self.data.commonroad.is_empty() && self.data.a9_bends.is_empty())
         {
-            return fail(
+            return refuse(
                 "data.curated",
                 "curated scenes come from the A9 split as recorded; drop data.commonroad and \
                  data.a9_bends, or data.curated",
             );
         }
         if !(self.lambda.is_finite() && self.lambda >= 0.0) {
-            return fail("lambda", "expected a finite weight >= 0");
+            return refuse("lambda", "expected a finite weight >= 0");
         }
+        Ok(())
+    }
+
+    /// `[optimizer]`.
+    fn check_optimizer(&self) -> Check {
+        let positive = |x: f64| x.is_finite() && x > 0.0;
+        let o = &self.optimizer;
         if !positive(o.learning_rate) {
-            return fail("optimizer.learning_rate", "expected a finite value > 0");
+            return refuse("optimizer.learning_rate", "expected a finite value > 0");
         }
         if !(o.decay.is_finite() && o.decay > 0.0 && o.decay <= 1.0) {
-            return fail("optimizer.decay", "expected a factor in (0, 1]");
+            return refuse("optimizer.decay", "expected a factor in (0, 1]");
         }
         if o.epochs == 0 || o.decay_every_epochs == 0 {
-            return fail(
+            return refuse(
                 "optimizer.epochs",
                 "epochs and decay_every_epochs must be >= 1",
             );
         }
         if !(o.weight_decay.is_finite() && o.weight_decay >= 0.0) {
-            return fail("optimizer.weight_decay", "expected a finite value >= 0");
+            return refuse("optimizer.weight_decay", "expected a finite value >= 0");
         }
         if !positive(o.grad_clip_norm) {
-            return fail("optimizer.grad_clip_norm", "expected a finite norm > 0");
+            return refuse("optimizer.grad_clip_norm", "expected a finite norm > 0");
         }
         if o.epoch_scenes == Some(0) {
-            return fail("optimizer.epoch_scenes", "expected at least 1 scene");
+            return refuse("optimizer.epoch_scenes", "expected at least 1 scene");
         }
+        Ok(())
+    }
+
+    /// `[ppo]`.
+    fn check_ppo(&self) -> Check {
+        let positive = |x: f64| x.is_finite() && x > 0.0;
+        let unit = |x: f64| x.is_finite() && (0.0..=1.0).contains(&x);
+        let p = &self.ppo;
         if p.minibatch == 0 || p.batch == 0 || !p.batch.is_multiple_of(p.minibatch) {
-            return fail(
+            return refuse(
                 "ppo.batch",
                 "batch and minibatch must be >= 1 and batch a multiple of minibatch",
             );
         }
         if p.epochs == 0 {
-            return fail("ppo.epochs", "expected at least 1");
+            return refuse("ppo.epochs", "expected at least 1");
         }
         if !(positive(p.clip) && p.clip < 1.0) {
-            return fail("ppo.clip", "expected a ratio clip in (0, 1)");
+            return refuse("ppo.clip", "expected a ratio clip in (0, 1)");
         }
         if !unit(p.gamma) || !unit(p.gae_lambda) {
-            return fail("ppo.gamma", "gamma and gae_lambda must lie in [0, 1]");
+            return refuse("ppo.gamma", "gamma and gae_lambda must lie in [0, 1]");
         }
         if !p
             .noise_correlation
             .iter()
             .all(|r| r.is_finite() && (0.0..1.0).contains(r))
         {
-            return fail(
+            return refuse(
                 "ppo.noise_correlation",
                 "expected per control a correlation in [0, 1) between one step's noise and the next",
             );
         }
         if !p.explore_steering && p.noise_correlation[1] != 0.0 {
-            return fail(
+            return refuse(
                 "ppo.noise_correlation",
                 "a steering correlation needs steering noise: with explore_steering = false set \
                  it to 0",
             );
         }
         if !(p.value_weight.is_finite() && p.value_weight >= 0.0) {
-            return fail("ppo.value_weight", "expected a finite weight >= 0");
+            return refuse("ppo.value_weight", "expected a finite weight >= 0");
         }
         if p.target_kl.is_some_and(|k| !positive(k)) {
-            return fail(
+            return refuse(
                 "ppo.target_kl",
                 "expected a KL divergence per agent-step > 0 (e.g. 0.01), or no key for a fixed rate",
             );
         }
+        Ok(())
+    }
+
+    /// `[imitation]` and `[shaping]`.
+    fn check_imitation(&self) -> Check {
+        let positive = |x: f64| x.is_finite() && x > 0.0;
         if let Some(why) = self.imitation.perturbation.as_ref().and_then(|p| p.check()) {
-            return fail("imitation.perturbation", &why);
+            return refuse("imitation.perturbation", why);
         }
         if let Some(why) = super::agent_dropout::check(self.imitation.agent_dropout) {
-            return fail("imitation.agent_dropout", &why);
+            return refuse("imitation.agent_dropout", why);
         }
         if self.imitation.minibatch == 0 {
-            return fail("imitation.minibatch", "expected at least 1");
+            return refuse("imitation.minibatch", "expected at least 1");
         }
         if !positive(self.imitation.huber_delta) {
-            return fail(
+            return refuse(
                 "imitation.huber_delta",
                 "expected a finite threshold > 0 (m)",
             );
         }
         if !positive(self.shaping.tolerance) || !self.shaping.weight.is_finite() {
-            return fail(
+            return refuse(
                 "shaping.tolerance",
                 "expected a tolerance > 0 (m/s) and a finite weight",
             );
         }
+        Ok(())
+    }
+
+    /// `[reference]` against the method and the warm start.
+    fn check_reference(&self) -> Check {
         match (&self.reference, self.method.uses_reference()) {
             (None, true) => {
-                return fail(
+                return refuse(
                     "reference",
                     "KL-L and KL-R need [reference] checkpoint = \"<frozen IL policy.bpk>\" \
                      or init = true (the warm start)",
                 );
             }
             (Some(r), _) if !(r.weight.is_finite() && r.weight >= 0.0) => {
-                return fail("reference.weight", "expected a finite weight >= 0");
+                return refuse("reference.weight", "expected a finite weight >= 0");
             }
             (Some(r), _) if r.checkpoint.is_some() == r.init => {
-                return fail(
+                return refuse(
                     "reference",
                     "expected exactly one of checkpoint = \"<frozen IL policy.bpk>\" and \
                      init = true (the warm start)",
                 );
             }
             (Some(r), _) if r.init && self.init.is_none() => {
-                return fail("reference.init", "needs an [init] warm start to refer to");
+                return refuse("reference.init", "needs an [init] warm start to refer to");
             }
             (Some(r), _) if r.init && r.std_from_logs => {
-                return fail(
+                return refuse(
                     "reference.std_from_logs",
                     "the warm start's sigma is [init]'s (std_from_logs, std_scale); drop it here",
                 );
             }
             _ => {}
         }
+        Ok(())
+    }
+
+    /// `[init]`.
+    fn check_init(&self) -> Check {
         if self
             .init
             .as_ref()
             .is_some_and(|i| i.add_agent_edge_motion && !self.model.agent_edge_motion)
         {
-            return fail(
+            return refuse(
                 "init.add_agent_edge_motion",
                 "adds relative motion to a pose-only warm start: it needs [model] \
                  agent_edge_motion = true",
@@ -860,29 +896,35 @@ impl TrainConfig {
             if !(init.agent_edge_motion_scale.is_finite() && init.agent_edge_motion_scale >= 0.0)
                 || (init.agent_edge_motion_scale != 1.0 && !init.add_agent_edge_motion)
             {
-                return fail(
+                return refuse(
                     "init.agent_edge_motion_scale",
                     "expected a factor >= 0 for the weights of init.add_agent_edge_motion",
                 );
             }
             if !init.std_scale.iter().all(|s| s.is_finite() && *s > 0.0) {
-                return fail("init.std_scale", "expected two finite factors > 0");
+                return refuse("init.std_scale", "expected two finite factors > 0");
             }
             if !init.std_from_logs && !is_unit_std_scale(&init.std_scale) {
-                return fail(
+                return refuse(
                     "init.std_scale",
                     "scales the sigma from the logs: it needs std_from_logs = true",
                 );
             }
         }
+        Ok(())
+    }
+
+    /// What the method may draw, and the counts that size tensors, loops and the run.
+    fn check_budget(&self) -> Check {
+        let (o, p) = (&self.optimizer, &self.ppo);
         if !self.method.uses_ppo() && self.alpha > 0.0 {
-            return fail(
+            return refuse(
                 "alpha",
                 "BC and IL learn from logs only: long-tail scenarios have no logs (set alpha = 0)",
             );
         }
         if self.data.max_rollout_steps == Some(0) {
-            return fail("data.max_rollout_steps", "expected at least 1 step");
+            return refuse("data.max_rollout_steps", "expected at least 1 step");
         }
         // Counts that size tensors or loops: bounded, so a typo is an error, not an abort.
         for (field, value, max) in [
@@ -900,7 +942,7 @@ impl TrainConfig {
             ("run.max_iterations", self.run.max_iterations, 100_000_000),
         ] {
             if value.is_some_and(|v| v > max) {
-                return fail(field, &format!("expected at most {max}"));
+                return refuse(field, format!("expected at most {max}"));
             }
         }
         for (field, value) in [
@@ -908,28 +950,35 @@ impl TrainConfig {
             ("run.max_iterations", self.run.max_iterations),
         ] {
             if value == Some(0) {
-                return fail(field, "expected at least 1 (0 would train on nothing)");
+                return refuse(field, "expected at least 1 (0 would train on nothing)");
             }
         }
         if self.method.uses_ppo() && self.alpha > 0.0 && self.data.longtail_limit == Some(0) {
-            return fail(
+            return refuse(
                 "data.longtail_limit",
                 "alpha > 0 draws long-tail scenarios; a limit of 0 leaves none (set alpha = 0 or \
                  raise the limit)",
             );
         }
         if let Err(why) = self.limits.check() {
-            return fail("limits", &why);
+            return refuse("limits", why);
         }
 
         if self.run.devices == Some(0) || self.run.checkpoint_every == 0 {
-            return fail(
+            return refuse(
                 "run.devices",
                 "devices and checkpoint_every must be at least 1",
             );
         }
-        self.model.validate(source_name)
+        Ok(())
     }
+}
+
+/// A field of a run file and why its value is refused.
+type Check = std::result::Result<(), (&'static str, String)>;
+
+fn refuse(field: &'static str, message: impl Into<String>) -> Check {
+    Err((field, message.into()))
 }
 
 /// Every leaf of `value` as (`dotted.key`, value), arrays indexed (`data.commonroad[0].path`).

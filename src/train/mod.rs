@@ -31,6 +31,7 @@ pub mod session;
 pub mod shaping;
 pub mod shards;
 pub mod sources;
+mod step;
 pub mod trainer;
 
 pub use checkpoint::{Checkpoint, LoopState, load_policy};

@@ -13,8 +13,8 @@
 use rand::Rng;
 use serde::{Deserialize, Serialize};
 
-use super::trainer::seeded_per_scene;
 use crate::scene::{AgentRole, Scene};
+use crate::seeding::seeded_per_scene;
 
 /// Largest perturbation each control may draw, uniformly in +-.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

@@ -31,19 +31,22 @@ use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
 
-use super::agent_dropout::drop_agents;
 use super::checkpoint::{self, LoopState};
-use super::config::{InitConfig, Method, PpoVariant, ReferenceConfig, TrainConfig};
+use super::config::{InitConfig, ReferenceConfig, TrainConfig};
 use super::curves::{CurveRow, Curves};
-use super::experience::{CollectNetworks, CollectStats, Experience, RewardSettings, collect};
-use super::gradients::{GraphLoss, GraphwiseGradients, clip_global_norm, sum_on_device};
-use super::imitation::{BcLabels, behaviour_cloning, closed_loop_imitation, imitation_count};
-use super::ppo::{AdvantageScale, adapt_lr_scale, ppo_terms};
+use super::experience::{CollectNetworks, CollectStats, RewardSettings, collect};
+use super::gradients::{clip_global_norm, sum_on_device};
+use super::imitation::BcLabels;
+use super::ppo::adapt_lr_scale;
 use super::shards::{BUCKET_SCENES, per_device, plan};
 use super::sources::{InitialState, Part, TrainingData};
+use super::step::{
+    LossPlan, MinibatchStatistics, ShardGradients, StepContext, TermValues, Work, rollout_steps,
+    shard_gradients,
+};
 use crate::error::{Error, Result};
 use crate::model::{ModelConfig, PolicyNetwork, ValueNetwork};
-use crate::scene::{Scene, SceneBatch};
+use crate::seeding::{DEVICE_RNG, Materialise, stream_seed, with_seeded_device};
 use crate::sim::{Dynamics, MapCaches};
 
 /// What a finished (or stopped) run reports.
@@ -53,156 +56,6 @@ pub struct TrainSummary {
     pub updates: usize,
     pub checkpoint: PathBuf,
     pub last: Option<CurveRow>,
-}
-
-/// A seed for stream `stream` of iteration `iteration` (SplitMix64 of the three).
-pub fn stream_seed(seed: u64, iteration: usize, stream: u64) -> u64 {
-    let mut z = seed
-        ^ (iteration as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
-        ^ stream.wrapping_mul(0xD1B5_4A32_D192_ED03);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
-
-/// The scenes an imitation rollout of `part` starts from in `iteration`: agents dropped and
-/// histories perturbed as `config.imitation` asks; `None`: the part's scenes as recorded. The
-/// draws are seeded, so every call for the same part and iteration gives the same scenes.
-fn imitation_scenes(config: &TrainConfig, part: &Part, iteration: usize) -> Option<Vec<Scene>> {
-    let imitation = &config.imitation;
-    let mut scenes = (imitation.agent_dropout > 0.0).then(|| {
-        drop_agents(
-            &part.scenes,
-            &part.slots,
-            imitation.agent_dropout,
-            config.seed,
-            iteration,
-        )
-    });
-    if let Some(perturbation) = imitation.perturbation {
-        let starts: Vec<&Scene> = match &scenes {
-            Some(scenes) => scenes.iter().collect(),
-            None => part.scenes.clone(),
-        };
-        scenes = Some(perturbation.apply(&starts, &part.slots, config.seed, iteration));
-    }
-    scenes
-}
-
-/// `change` applied to each of `scenes` with a generator of its own, seeded by `seed`,
-/// `iteration` and stream `stream + slot` (`slots`: each scene's position in its draw), so a
-/// scene draws the same however its draw is batched, and a resumed run draws the same again.
-pub fn seeded_per_scene(
-    scenes: &[&Scene],
-    slots: &[usize],
-    seed: u64,
-    iteration: usize,
-    stream: u64,
-    change: impl Fn(&Scene, &mut ChaCha8Rng) -> Scene,
-) -> Vec<Scene> {
-    scenes
-        .iter()
-        .zip(slots)
-        .map(|(scene, &slot)| {
-            let mut rng =
-                ChaCha8Rng::seed_from_u64(stream_seed(seed, iteration, stream + slot as u64));
-            change(scene, &mut rng)
-        })
-        .collect()
-}
-
-/// Serialises seeding and initialisation through the devices' global RNG within a process.
-static DEVICE_RNG: std::sync::Mutex<()> = std::sync::Mutex::new(());
-
-/// Runs `make` (which should initialise modules and [`Materialise`] them) with `device`'s
-/// global RNG seeded with `seed`, under a process lock, so parallel threads cannot interleave
-/// their draws.
-pub fn with_seeded_device<T>(device: &Device, seed: u64, make: impl FnOnce() -> T) -> T {
-    let _guard = DEVICE_RNG.lock().unwrap_or_else(|p| p.into_inner());
-    device.seed(seed);
-    make()
-}
-
-/// Touches every parameter, so lazily initialised ones draw their values now.
-pub(crate) struct Materialise;
-
-impl burn::module::ModuleVisitor for Materialise {
-    fn visit_float<const D: usize>(&mut self, param: &burn::module::Param<Tensor<D>>) {
-        let _ = param.val();
-    }
-}
-
-/// One part of a minibatch as one device sees it.
-struct Work<'a> {
-    part: Part<'a>,
-    experience: Option<Experience>,
-    labels: Option<BcLabels>,
-}
-
-/// Per-device results of one gradient computation.
-struct ShardGradients {
-    policy: GradientsParams,
-    value: Option<GradientsParams>,
-}
-
-/// Host values of the loss terms (already divided by their counts).
-#[derive(Debug, Clone, Copy, Default)]
-struct TermValues {
-    total: f64,
-    il: f64,
-    bc: f64,
-    policy: f64,
-    value: f64,
-    kl: f64,
-    clipped: usize,
-    /// Summed over the PPO entries ([`super::ppo::Surrogate::approx_kl`]).
-    approx_kl: f64,
-}
-
-impl std::ops::AddAssign for TermValues {
-    fn add_assign(&mut self, o: Self) {
-        self.total += o.total;
-        self.il += o.il;
-        self.bc += o.bc;
-        self.policy += o.policy;
-        self.value += o.value;
-        self.kl += o.kl;
-        self.clipped += o.clipped;
-        self.approx_kl += o.approx_kl;
-    }
-}
-
-/// Weights of the PPO terms in one update.
-#[derive(Debug, Clone, Copy)]
-struct PpoWeights {
-    policy: f64,
-    value: f64,
-    /// KL(pi || pi_ref) as a loss (KL-L).
-    kl: f64,
-}
-
-impl PpoWeights {
-    /// Some PPO term counts, so the stored observations are re-evaluated. RTR at lambda 0 has
-    /// none, and building the unused graph anyway got its run killed for memory (24.4 GB during
-    /// the value warm-up, when nothing else is differentiated).
-    fn any(&self) -> bool {
-        self.policy != 0.0 || self.value != 0.0 || self.kl != 0.0
-    }
-
-    /// A gradient reaches the policy (not during the value warm-up).
-    fn policy_tracked(&self) -> bool {
-        self.policy != 0.0 || self.kl != 0.0
-    }
-}
-
-/// The counts every term is divided by, over the whole minibatch (known before any forward,
-/// so shards on different devices add up to the single-device loss).
-#[derive(Debug, Clone, Copy, Default)]
-struct Normalisers {
-    il: usize,
-    bc: usize,
-    ppo: usize,
-    kl: usize,
 }
 
 pub struct Trainer<'d> {
@@ -719,50 +572,17 @@ impl<'d> Trainer<'d> {
         last_checkpoint: Option<&Path>,
     ) -> Result<(CurveRow, Vec<Vec<Work<'a>>>)> {
         let config = self.config.clone();
-        let method = config.method;
-        let cap = config.data.max_rollout_steps;
-        let mut norm = Normalisers::default();
-        let mut scenes = 0;
-        let mut advantages: Vec<f32> = Vec::new();
-        for w in work.iter().flatten() {
-            scenes += w.part.scenes.len();
-            if method.uses_closed_loop_il() && w.part.is_nominal() {
-                let steps = rollout_steps(&w.part, cap);
-                norm.il += match imitation_scenes(&config, &w.part, i) {
-                    Some(scenes) => imitation_count(&scenes.iter().collect::<Vec<_>>(), steps),
-                    None => imitation_count(&w.part.scenes, steps),
-                };
-            }
-            if let Some(labels) = &w.labels {
-                norm.bc += labels.count;
-            }
-            if let Some(e) = &w.experience {
-                let (alive, adv) = match config.ppo.variant {
-                    PpoVariant::Factorized => (e.alive.clone(), e.advantages.clone()),
-                    PpoVariant::SceneLevel => (e.scene_alive.clone(), e.scene_advantages.clone()),
-                };
-                norm.ppo += alive.clone().int().sum().into_scalar::<i64>() as usize;
-                norm.kl += e.stats.agent_steps;
-                if config.ppo.normalize_advantages {
-                    advantages.extend(AdvantageScale::alive_values(adv, alive));
-                }
-            }
-        }
-        let scale = AdvantageScale::of(&advantages);
-        let rl_weight = match method {
-            Method::Rl | Method::RlShaped => 1.0,
-            _ => config.lambda,
+        let plan = LossPlan::of(&config, i);
+        let minibatch = MinibatchStatistics::of(&config, &work, i);
+        let ctx = StepContext {
+            config: &config,
+            plan,
+            minibatch: &minibatch,
+            iteration: i,
+            dynamics: &self.dynamics,
         };
-        let kl_weight = config.reference.as_ref().map_or(0.0, |r| r.weight);
-        let uses_value = method.uses_ppo();
-        // During the value warm-up only the value loss is taken and only the value steps.
-        let warming_up = uses_value && i < config.ppo.value_warmup_iterations;
-        let policy_weight = if warming_up { 0.0 } else { 1.0 };
-
         let devices = self.devices.clone();
-        let policy = &self.policy;
-        let value = &self.value;
-        let dynamics = &self.dynamics;
+        let (policy, value) = (&self.policy, &self.value);
         let results = per_device(work, &mut self.caches, |k, work, caches| {
             let device = &devices[k];
             let (policy, value) = if k == 0 {
@@ -770,152 +590,65 @@ impl<'d> Trainer<'d> {
             } else {
                 (policy.clone().fork(device), value.clone().fork(device))
             };
-            let mut terms = TermValues::default();
-            let mut gradients = GraphwiseGradients::new(&policy, uses_value.then_some(&value));
-            // Each graph is differentiated as soon as it is built (only one alive at a time);
-            // a non-finite loss stops the step before any backward of it.
-            let mut differentiate = |loss: GraphLoss, terms: &mut TermValues| -> bool {
-                terms.total += loss.value;
-                if !loss.value.is_finite() {
-                    return false;
-                }
-                gradients.backward(loss);
-                true
-            };
-            let weights = PpoWeights {
-                policy: policy_weight * rl_weight,
-                value: rl_weight * config.ppo.value_weight,
-                kl: policy_weight * kl_weight,
-            };
-            for w in &work {
-                let steps = rollout_steps(&w.part, cap);
-                if method.uses_closed_loop_il() && w.part.is_nominal() && !warming_up {
-                    let changed = imitation_scenes(&config, &w.part, i);
-                    let scenes: Vec<&Scene> = match &changed {
-                        Some(scenes) => scenes.iter().collect(),
-                        None => w.part.scenes.clone(),
-                    };
-                    let batch = match (&w.experience, &changed) {
-                        (Some(e), None) => e.batch.clone(),
-                        _ => SceneBatch::from_scenes(&scenes, &device.clone().inner())?,
-                    };
-                    let sum = closed_loop_imitation(
-                        &policy,
-                        &scenes,
-                        &batch,
-                        dynamics,
-                        caches,
-                        steps,
-                        &config.imitation,
-                    )?;
-                    let mut loss = GraphLoss::default();
-                    terms.il += loss.add(sum, norm.il, policy_weight).unwrap_or(0.0);
-                    if !differentiate(loss, &mut terms) {
-                        return Ok((None, terms, work));
-                    }
-                }
-                if let Some(labels) = w.labels.as_ref().filter(|_| !warming_up) {
-                    let batch = match &w.experience {
-                        Some(e) => e.batch.clone(),
-                        None => SceneBatch::from_scenes(&w.part.scenes, &device.clone().inner())?,
-                    };
-                    let mut loss = GraphLoss::default();
-                    let sum = behaviour_cloning(&policy, &batch, labels);
-                    terms.bc += loss.add(sum, norm.bc, policy_weight).unwrap_or(0.0);
-                    if !differentiate(loss, &mut terms) {
-                        return Ok((None, terms, work));
-                    }
-                }
-                if let Some(e) = w.experience.as_ref().filter(|_| weights.any()) {
-                    // The policy, value and KL terms share the policy's forward pass; during
-                    // the value warm-up it is taken without a graph (no gradient reaches it).
-                    let ppo_policy = if weights.policy_tracked() {
-                        policy.clone()
-                    } else {
-                        policy.clone().no_grad()
-                    };
-                    let t = ppo_terms(
-                        &ppo_policy,
-                        &value,
-                        e,
-                        &config.ppo,
-                        scale,
-                        method == Method::KlLoss,
-                    );
-                    terms.clipped += t.clipped;
-                    terms.approx_kl += t.approx_kl;
-                    let mut loss = GraphLoss::default();
-                    let policy_term = loss.add(t.policy.sum, norm.ppo, weights.policy);
-                    terms.policy += policy_term.unwrap_or(0.0);
-                    terms.value += loss
-                        .add(t.value.sum, norm.ppo, weights.value)
-                        .unwrap_or(0.0);
-                    if let Some(kl) = t.kl {
-                        let kl_term = loss.add(kl.sum, norm.kl, weights.kl);
-                        terms.kl += kl_term.unwrap_or(0.0);
-                    }
-                    if !differentiate(loss, &mut terms) {
-                        return Ok((None, terms, work));
-                    }
-                }
-            }
-            // Where no term had weight (RTR at lambda 0 during the value warm-up: the value
-            // loss is weighted by lambda, the policy waits) the gradients are empty.
-            let (policy, value) = gradients.finish();
-            Ok((Some(ShardGradients { policy, value }), terms, work))
+            shard_gradients(&ctx, &policy, &value, work, device, caches)
         })?;
+        let (terms, gradients, returned) = gather_shards(results);
+        let diverged = |what: &str, value: f64| self.diverged(i, what, value, last_checkpoint);
+        let gradients = match gradients {
+            Some(g) if terms.total.is_finite() => g,
+            _ => return Err(diverged("loss", terms.total)),
+        };
+        let approx_kl = terms.approx_kl / minibatch.ppo_entries().max(1) as f64;
+        let step = self.step_networks(lr, approx_kl, &plan, gradients, i, last_checkpoint)?;
+        let row = self.curve_row(i, epoch, &terms, &minibatch, &step, &stats, approx_kl);
+        self.curves.push(row.clone())?;
+        Ok((row, returned))
+    }
 
-        let mut terms = TermValues::default();
-        let mut policy_parts = Vec::new();
-        let mut value_parts = Vec::new();
-        let mut returned = Vec::new();
-        let mut finite = true;
-        for (grads, t, work) in results {
-            terms += t;
-            returned.push(work);
-            match grads {
-                Some(g) => {
-                    policy_parts.push(g.policy);
-                    value_parts.extend(g.value);
-                }
-                None => finite = false,
-            }
-        }
-        let diverged = |what: &str, value: f64| Error::Diverged {
+    /// The error of a step whose `what` came out non-finite.
+    fn diverged(&self, i: usize, what: &str, value: f64, last_checkpoint: Option<&Path>) -> Error {
+        Error::Diverged {
             iteration: i,
             update: self.state.updates,
             what: what.to_string(),
             value,
             checkpoint: last_checkpoint
                 .map_or("none written yet".into(), |p| p.display().to_string()),
-        };
-        if !finite || !terms.total.is_finite() {
-            return Err(diverged("loss", terms.total));
         }
-        let main = &self.devices[0];
-        let mut policy_grads = sum_on_device(&self.policy, policy_parts, main);
-        let policy_norm = clip_global_norm(
-            &self.policy,
-            &mut policy_grads,
-            config.optimizer.grad_clip_norm,
-        );
+    }
+
+    /// Sums the shards' gradients on the first device, clips each network's to
+    /// `optimizer.grad_clip_norm` and steps the optimizers (the policy's not during the value
+    /// warm-up, at the rate `ppo.target_kl` adapts).
+    fn step_networks(
+        &mut self,
+        lr: f64,
+        approx_kl: f64,
+        plan: &LossPlan,
+        (policy_parts, value_parts): (Vec<GradientsParams>, Vec<GradientsParams>),
+        i: usize,
+        last_checkpoint: Option<&Path>,
+    ) -> Result<StepNorms> {
+        let clip = self.config.optimizer.grad_clip_norm;
+        let main = self.devices[0].clone();
+        let mut policy_grads = sum_on_device(&self.policy, policy_parts, &main);
+        let policy_norm = clip_global_norm(&self.policy, &mut policy_grads, clip);
         if !policy_norm.is_finite() {
-            return Err(diverged("policy gradient norm", policy_norm));
+            return Err(self.diverged(i, "policy gradient norm", policy_norm, last_checkpoint));
         }
         let mut value_norm = 0.0;
-        let value_grads = if uses_value {
-            let mut g = sum_on_device(&self.value, value_parts, main);
-            value_norm = clip_global_norm(&self.value, &mut g, config.optimizer.grad_clip_norm);
+        let value_grads = if plan.uses_value {
+            let mut g = sum_on_device(&self.value, value_parts, &main);
+            value_norm = clip_global_norm(&self.value, &mut g, clip);
             if !value_norm.is_finite() {
-                return Err(diverged("value gradient norm", value_norm));
+                return Err(self.diverged(i, "value gradient norm", value_norm, last_checkpoint));
             }
             Some(g)
         } else {
             None
         };
-        let approx_kl = terms.approx_kl / norm.ppo.max(1) as f64;
-        let policy_lr = self.policy_learning_rate(lr, approx_kl, warming_up);
-        if !warming_up {
+        let policy_lr = self.policy_learning_rate(lr, approx_kl, plan.warming_up);
+        if !plan.warming_up {
             self.policy = self
                 .policy_optimizer
                 .step(policy_lr, self.policy.clone(), policy_grads);
@@ -925,33 +658,84 @@ impl<'d> Trainer<'d> {
             self.value = self.value_optimizer.step(lr, self.value.clone(), g);
         }
         self.state.updates += 1;
+        Ok(StepNorms {
+            policy_lr,
+            policy_norm,
+            value_norm,
+        })
+    }
 
+    /// The curve row of the step just taken.
+    #[allow(clippy::too_many_arguments)]
+    fn curve_row(
+        &self,
+        i: usize,
+        epoch: usize,
+        terms: &TermValues,
+        minibatch: &MinibatchStatistics,
+        step: &StepNorms,
+        stats: &CollectStats,
+        approx_kl: f64,
+    ) -> CurveRow {
         let pct = |k: usize| 100.0 * k as f64 / stats.agents.max(1) as f64;
-        let row = CurveRow {
+        CurveRow {
             iteration: i,
             update: self.state.updates,
             epoch,
-            learning_rate: policy_lr,
+            learning_rate: step.policy_lr,
             loss: terms.total,
             il_loss: terms.il,
             bc_loss: terms.bc,
             policy_loss: terms.policy,
             value_loss: terms.value,
             kl: terms.kl,
-            clip_fraction: terms.clipped as f64 / norm.ppo.max(1) as f64,
-            policy_grad_norm: policy_norm,
-            value_grad_norm: value_norm,
+            clip_fraction: terms.clipped as f64 / minibatch.ppo_entries().max(1) as f64,
+            policy_grad_norm: step.policy_norm,
+            value_grad_norm: step.value_norm,
             collision_pct: pct(stats.collided),
             offroad_pct: pct(stats.offroad),
             mean_reward: stats.reward_sum / stats.agent_steps.max(1) as f64,
             ppo_agent_steps: stats.agent_steps,
-            scenes,
+            scenes: minibatch.scenes,
             elapsed_s: self.started.elapsed().as_secs_f64(),
             approx_kl,
-        };
-        self.curves.push(row.clone())?;
-        Ok((row, returned))
+        }
     }
+}
+
+/// What one step did to the networks.
+struct StepNorms {
+    policy_lr: f64,
+    policy_norm: f64,
+    value_norm: f64,
+}
+
+/// The shards' results put together: their summed terms, their gradients (`None` where one
+/// met a non-finite loss) and their parts.
+#[allow(clippy::type_complexity)]
+fn gather_shards<'a>(
+    results: Vec<(Option<ShardGradients>, TermValues, Vec<Work<'a>>)>,
+) -> (
+    TermValues,
+    Option<(Vec<GradientsParams>, Vec<GradientsParams>)>,
+    Vec<Vec<Work<'a>>>,
+) {
+    let mut terms = TermValues::default();
+    let (mut policy, mut value) = (Vec::new(), Vec::new());
+    let mut returned = Vec::new();
+    let mut finite = true;
+    for (grads, t, work) in results {
+        terms += t;
+        returned.push(work);
+        match grads {
+            Some(g) => {
+                policy.push(g.policy);
+                value.extend(g.value);
+            }
+            None => finite = false,
+        }
+    }
+    (terms, finite.then_some((policy, value)), returned)
 }
 
 /// Initial states one iteration consumes.
@@ -1023,10 +807,4 @@ fn check_position(
         )),
         None => Ok(()),
     }
-}
-
-/// Steps a part is rolled out for.
-fn rollout_steps(part: &Part, cap: Option<usize>) -> usize {
-    let future = part.scenes.first().map_or(0, |s| s.future_steps);
-    cap.map_or(future, |c| c.min(future))
 }

@@ -6,10 +6,10 @@ use clap::Args;
 
 use rtr::backend::Backend;
 use rtr::data::SceneConfig;
-use rtr::eval::downstream::{DownstreamConfig, downstream, downstream_table};
 use rtr::eval::study::load_entries;
 use rtr::eval::{EvalConfig, EvalScenes};
 use rtr::io::{OutputKind, check_output};
+use rtr::studies::downstream::{DownstreamConfig, downstream, downstream_table};
 use rtr::{Error, Result};
 
 use super::args::{DataArgs, count};

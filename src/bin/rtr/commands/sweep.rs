@@ -5,9 +5,9 @@ use std::path::PathBuf;
 use clap::Args;
 
 use rtr::Result;
-use rtr::eval::sweep::{check_points, evaluate_points, parse_points, train_points, write_sweep};
 use rtr::eval::{EvalConfig, EvalSet, load_sets};
 use rtr::io::{OutputKind, check_output};
+use rtr::studies::sweep::{check_points, evaluate_points, parse_points, train_points, write_sweep};
 
 use super::args::{DataArgs, count};
 

@@ -1,0 +1,214 @@
+//! The layers `src/lib.rs` states, enforced: no module of `src/` names (`crate::...`) a module
+//! of a higher layer. The list is read from lib.rs's doc comment, so the rule and its statement
+//! cannot drift apart; a module missing from the list fails too.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// Module name -> layer, from the numbered lines of `lib_rs`'s `//!` comment
+/// (`//! 3. \`scene\`: ...`; a list may continue on the next `//!    ` lines).
+fn layers(lib_rs: &str) -> BTreeMap<String, usize> {
+    let mut out = BTreeMap::new();
+    let mut current = None;
+    for line in lib_rs.lines() {
+        let Some(doc) = line.strip_prefix("//!") else {
+            continue;
+        };
+        let doc = doc.trim_start();
+        let numbered = doc
+            .split_once(". ")
+            .and_then(|(n, rest)| n.parse::<usize>().ok().map(|n| (n, rest)));
+        let text = match numbered {
+            Some((n, rest)) => {
+                current = Some(n);
+                rest
+            }
+            // A continuation line of the current item, or the end of the list.
+            None if current.is_some() && line.starts_with("//!    ") => doc,
+            None => {
+                current = None;
+                continue;
+            }
+        };
+        // Module names are the backticked words before the item's colon.
+        let names = text.split(':').next().unwrap_or("");
+        for (k, part) in names.split('`').enumerate() {
+            if k % 2 == 1 {
+                out.insert(part.to_string(), current.expect("inside an item"));
+            }
+        }
+    }
+    out
+}
+
+/// The code of `source`, line by line, without comments (doc comments' paths are only links)
+/// and without the contents of string literals.
+fn code_lines(source: &str) -> impl Iterator<Item = (usize, String)> + '_ {
+    source.lines().enumerate().map(|(i, line)| {
+        let mut in_string = false;
+        let mut code = String::new();
+        let bytes: Vec<char> = line.chars().collect();
+        let mut k = 0;
+        while k < bytes.len() {
+            let c = bytes[k];
+            if c == '"' && (k == 0 || bytes[k - 1] != '\\') {
+                in_string = !in_string;
+            } else if in_string {
+                // A string's contents are data, not paths.
+                k += 1;
+                continue;
+            }
+            if !in_string && c == '/' && bytes.get(k + 1) == Some(&'/') {
+                break;
+            }
+            code.push(c);
+            k += 1;
+        }
+        (i + 1, code)
+    })
+}
+
+/// The top-level modules `code` names through `crate::`, including each item of a
+/// `crate::{a::b, c}` group.
+fn crate_paths(code: &str) -> Vec<String> {
+    let mut out = Vec::new();
+    let mut rest = code;
+    while let Some(at) = rest.find("crate::") {
+        let after = &rest[at + "crate::".len()..];
+        if let Some(group) = after.strip_prefix('{') {
+            let mut depth = 0;
+            let mut item = String::new();
+            let mut items = Vec::new();
+            for c in group.chars() {
+                match c {
+                    '{' => depth += 1,
+                    '}' if depth == 0 => break,
+                    '}' => depth -= 1,
+                    ',' if depth == 0 => items.push(std::mem::take(&mut item)),
+                    _ => {}
+                }
+                item.push(c);
+            }
+            items.push(item);
+            for item in items {
+                let name: String = item
+                    .trim_start_matches([',', ' ', '\n'])
+                    .chars()
+                    .take_while(|c| c.is_alphanumeric() || *c == '_')
+                    .collect();
+                if !name.is_empty() {
+                    out.push(name);
+                }
+            }
+        } else {
+            let name: String = after
+                .chars()
+                .take_while(|c| c.is_alphanumeric() || *c == '_')
+                .collect();
+            out.push(name);
+        }
+        rest = after;
+    }
+    out
+}
+
+/// Every upward use in `files` (path relative to `src/`, source) under `layers`, as
+/// "file:line: ..." messages; a file whose module has no layer is reported too.
+fn upward_uses(layers: &BTreeMap<String, usize>, files: &[(PathBuf, String)]) -> Vec<String> {
+    let mut found = Vec::new();
+    for (path, source) in files {
+        let module = path
+            .components()
+            .next()
+            .and_then(|c| c.as_os_str().to_str())
+            .map(|c| c.trim_end_matches(".rs").to_string())
+            .unwrap_or_default();
+        if module == "lib" || module == "main" || module == "bin" {
+            continue;
+        }
+        let Some(&own) = layers.get(&module) else {
+            found.push(format!(
+                "src/{}: module `{module}` is in no layer of lib.rs's list",
+                path.display()
+            ));
+            continue;
+        };
+        for (line, code) in code_lines(source) {
+            for used in crate_paths(&code) {
+                // Re-exports at the crate root (`crate::Result`) belong to layer 1.
+                let layer = layers.get(&used).copied().unwrap_or(1);
+                if layer > own {
+                    found.push(format!(
+                        "src/{}:{line}: `{module}` (layer {own}) uses `crate::{used}` (layer \
+                         {layer})",
+                        path.display()
+                    ));
+                }
+            }
+        }
+    }
+    found
+}
+
+fn rust_files(dir: &Path, root: &Path, out: &mut Vec<(PathBuf, String)>) {
+    for entry in std::fs::read_dir(dir).expect("src/ is readable") {
+        let path = entry.expect("a directory entry").path();
+        if path.is_dir() {
+            rust_files(&path, root, out);
+        } else if path.extension().is_some_and(|e| e == "rs") {
+            let source = std::fs::read_to_string(&path).expect("a UTF-8 source file");
+            out.push((
+                path.strip_prefix(root).expect("under src").to_path_buf(),
+                source,
+            ));
+        }
+    }
+}
+
+#[test]
+fn no_module_uses_a_higher_layer() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let lib = std::fs::read_to_string(src.join("lib.rs")).expect("lib.rs");
+    let layers = layers(&lib);
+    for module in lib.lines().filter_map(|l| {
+        l.trim()
+            .strip_prefix("pub mod")
+            .or(l.trim().strip_prefix("mod"))
+    }) {
+        let module = module.trim().trim_end_matches(';');
+        assert!(
+            layers.contains_key(module),
+            "src/lib.rs declares `{module}` but its layer list does not name it"
+        );
+    }
+    let mut files = Vec::new();
+    rust_files(&src, &src, &mut files);
+    let found = upward_uses(&layers, &files);
+    assert!(found.is_empty(), "upward uses:\n{}", found.join("\n"));
+}
+
+#[test]
+fn an_upward_use_is_reported_with_its_file_and_line() {
+    let lib = "//! Layers:\n//!\n//! 1. `error`, `geometry`,\n//!    `io`: foundations;\n\
+               //! 2. `map`: roads;\n//! 3. `train`: training;\n\npub mod map;\n";
+    let layers = layers(lib);
+    assert_eq!(layers.get("io"), Some(&1));
+    assert_eq!(layers.get("train"), Some(&3));
+    let file = |path: &str, source: &str| (PathBuf::from(path), source.to_string());
+    let files = [
+        file(
+            "map/parse.rs",
+            "//! Links to [`crate::train`] are fine.\nuse crate::geometry::Point;\n\
+             use crate::{error::Result, train::Trainer};\nlet s = \"crate::train\"; // crate::train\n",
+        ),
+        file("train/loop.rs", "use crate::map::Map;\n"),
+        file("predict.rs", "use crate::map::Map;\n"),
+    ];
+    let found = upward_uses(&layers, &files);
+    assert_eq!(found.len(), 2, "{found:#?}");
+    assert!(
+        found[0].starts_with("src/map/parse.rs:3:") && found[0].contains("`crate::train`"),
+        "{found:#?}"
+    );
+    assert!(found[1].contains("`predict` is in no layer"), "{found:#?}");
+}
