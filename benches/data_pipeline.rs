@@ -6,7 +6,6 @@
 
 use std::time::Instant;
 
-use burn::prelude::*;
 use rtr::data::{A9Dataset, SceneConfig, a9, logged_infractions};
 use rtr::scene::SceneBatch;
 
@@ -29,8 +28,7 @@ fn main() {
     let config = SceneConfig::default();
     let (scenes_best, _, split) = time(3, || data.scenes(&config).expect("scenes"));
     let (infr_best, _, infractions) = time(3, || logged_infractions(&data.recording, &data.map));
-    #[allow(deprecated)]
-    let device = Device::ndarray();
+    let device = rtr::backend::Backend::reference_device(false);
     let batch: Vec<_> = split.train.iter().take(32).collect();
     let (batch_best, _, _) = time(5, || {
         SceneBatch::from_scenes(&batch, &device).expect("batch")

@@ -110,8 +110,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         .into());
     }
     config.data.longtail_dir = Some(scenarios.to_path_buf());
-    #[allow(deprecated)]
-    let device = Device::ndarray();
+    let device = rtr::backend::Backend::reference_device(false);
     let checkpoint = Path::new(&args[1]);
     if !checkpoint.join("value.bpk").is_file() {
         return Err(format!(

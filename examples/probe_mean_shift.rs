@@ -83,8 +83,7 @@ fn measure(task: ProbeTask, variants: &[(f32, f64)]) {
     let scenes: Vec<_> = sets.eval.iter().map(|s| s.to_scene().unwrap()).collect();
     let config =
         TrainConfig::from_toml_file(std::path::Path::new("models/il_ff/config.toml")).unwrap();
-    #[allow(deprecated)]
-    let device = Device::ndarray();
+    let device = rtr::backend::Backend::reference_device(false);
     let policy = load_policy(
         std::path::Path::new("models/il_ff/policy.bpk"),
         &config.model,

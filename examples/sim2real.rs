@@ -12,8 +12,7 @@ use rtr::sim2real::{Effect, GeneratorConfig, Sim2RealOptions, Uncatalogued, gene
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     rtr::allocator::tune_for_tensors();
     let wanted: Vec<String> = std::env::args().skip(1).collect();
-    #[allow(deprecated)]
-    let device = burn::prelude::Device::ndarray();
+    let device = rtr::backend::Backend::reference_device(false);
     let mut cases: Vec<(String, GeneratorConfig)> = Effect::ALL
         .iter()
         .map(|&e| {

@@ -71,10 +71,17 @@ impl Backend {
         Ok(if autodiff { device.autodiff() } else { device })
     }
 
+    /// The CPU device every build has (NdArray), plain or with autodiff: the tests' reference
+    /// device, and where host-side code needs a device but no backend choice.
+    pub fn reference_device(autodiff: bool) -> Device {
+        #[allow(deprecated)] // burn deprecates NdArray in favour of Flex; both are kept
+        let device = Device::ndarray();
+        if autodiff { device.autodiff() } else { device }
+    }
+
     fn plain_device(self) -> Result<Device> {
         match self {
-            #[allow(deprecated)] // burn deprecates NdArray in favour of Flex; both are kept
-            Backend::NdArray => Ok(Device::ndarray()),
+            Backend::NdArray => Ok(Self::reference_device(false)),
             #[cfg(feature = "flex")]
             Backend::Flex => Ok(Device::flex()),
             #[cfg(feature = "wgpu")]

@@ -3,7 +3,6 @@
 
 mod common;
 
-use burn::prelude::*;
 use rtr::data::{VehicleClass, logged_infractions};
 use rtr::geometry::wrap_angle;
 use rtr::scene::{AgentRole, SceneBatch};
@@ -164,8 +163,7 @@ fn scene_agents_follow_the_documented_roles() {
 #[test]
 fn scene_batch_pads_with_masks() {
     let split = common::a9_scenes();
-    #[allow(deprecated)]
-    let device = Device::ndarray();
+    let device = rtr::backend::Backend::reference_device(false);
     let scenes: Vec<_> = split.test.iter().take(8).collect();
     let batch = SceneBatch::from_scenes(&scenes, &device).expect("batch");
     let max_agents = scenes.iter().map(|s| s.agents.len()).max().unwrap();

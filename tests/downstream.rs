@@ -15,9 +15,8 @@ use rtr::scene::Scene;
 use rtr::sim::{Dynamics, replay_logs};
 use rtr::studies::downstream::{DownstreamConfig, downstream};
 
-#[allow(deprecated)]
 fn cpu() -> Device {
-    Device::ndarray()
+    rtr::backend::Backend::reference_device(false)
 }
 
 #[test]

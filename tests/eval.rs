@@ -13,9 +13,8 @@ use rtr::eval::{
 use rtr::scene::{Scene, SceneBatch};
 use rtr::sim::{Dynamics, MapCaches, RolloutConfig, coast, replay_logs, rollout};
 
-#[allow(deprecated)]
 fn cpu() -> Device {
-    Device::ndarray()
+    rtr::backend::Backend::reference_device(false)
 }
 
 fn metric(tallies: &[SceneTally], m: Metric) -> f64 {

@@ -73,8 +73,7 @@ fn f64_device() -> Device {
     static DEVICE: OnceLock<Device> = OnceLock::new();
     DEVICE
         .get_or_init(|| {
-            #[allow(deprecated)]
-            let mut device = Device::ndarray().autodiff();
+            let mut device = rtr::backend::Backend::reference_device(true);
             device.configure(FloatDType::F64).expect("f64 on the CPU");
             device
         })

@@ -17,8 +17,7 @@ use rtr::sim::bench::synthetic_scene;
 use rtr::sim::{Dynamics, MapCaches, RolloutConfig, imitation_loss, logged_frames, rollout};
 
 fn device(autodiff: bool) -> Device {
-    #[allow(deprecated)]
-    let device = Device::ndarray();
+    let device = rtr::backend::Backend::reference_device(false);
     if autodiff { device.autodiff() } else { device }
 }
 

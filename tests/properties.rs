@@ -50,8 +50,7 @@ fn nonsense() -> impl Strategy<Value = String> {
 fn recordings_csv() -> &'static str {
     static CSV: OnceLock<String> = OnceLock::new();
     CSV.get_or_init(|| {
-        #[allow(deprecated)]
-        let device = burn::prelude::Device::ndarray();
+        let device = rtr::backend::Backend::reference_device(false);
         let mut config = GeneratorConfig::with_effect(None, 5);
         config.tracks = 3;
         config.duration_s = 4.0;
@@ -99,8 +98,7 @@ proptest! {
 
     #[test]
     fn recordings_round_trip_through_csv(seed in 0u64..1000) {
-        #[allow(deprecated)]
-        let device = burn::prelude::Device::ndarray();
+        let device = rtr::backend::Backend::reference_device(false);
         let mut config = GeneratorConfig::with_effect(None, seed);
         config.tracks = 3;
         config.duration_s = 3.0;

@@ -382,8 +382,7 @@ fn a_log_slower_than_1_hz_is_rejected() {
 #[test]
 fn a_horizon_shorter_than_two_samples_is_named_not_a_panic() {
     use rtr::sim2real::{GeneratorConfig, Sim2RealOptions, generate, identify};
-    #[allow(deprecated)]
-    let device = burn::prelude::Device::ndarray();
+    let device = rtr::backend::Backend::reference_device(false);
     let recordings = generate(
         &GeneratorConfig {
             tracks: 4,

@@ -275,8 +275,7 @@ fn idm_rollout(
     scenes: &[&Scene],
     scenarios: Option<&[&ConcreteScenario]>,
 ) -> (rtr::sim::Rollout, SceneBatch) {
-    #[allow(deprecated)]
-    let device = Device::ndarray();
+    let device = rtr::backend::Backend::reference_device(false);
     let batch = SceneBatch::from_scenes(scenes, &device).unwrap();
     let mut idm = IdmDriver::new(scenes, IdmParams::default(), ActionLimits::default());
     let mut caches = MapCaches::default();
@@ -421,8 +420,7 @@ fn speeds_and_travel(out: &rtr::sim::Rollout, batch: &SceneBatch) -> Vec<Vec<(f6
 /// with every agent braking as hard as the limits allow. Checks that no speed is negative and
 /// that no braked vehicle travels backwards; returns (agents that reached rest, agents).
 fn check_standstill(scenes: &[&Scene], heroes: Option<&[&ConcreteScenario]>) -> (usize, usize) {
-    #[allow(deprecated)]
-    let device = Device::ndarray();
+    let device = rtr::backend::Backend::reference_device(false);
     let (driven, batch) = idm_rollout(scenes, heroes);
     let dynamics = Dynamics::bicycle(0.5);
     let config = RolloutConfig::default();
@@ -689,8 +687,7 @@ fn first_collisions_name_the_other_vehicle_and_the_side() {
         .collect();
     let set =
         rtr::eval::EvalScenes::generated(rtr::eval::EvalSet::Longtail, scenarios).expect("scenes");
-    #[allow(deprecated)]
-    let device = Device::ndarray();
+    let device = rtr::backend::Backend::reference_device(false);
     let config = rtr::eval::EvalConfig {
         resamples: 100,
         ..Default::default()

@@ -15,9 +15,8 @@ use rtr::sim::{
     replay_logs, rollout,
 };
 
-#[allow(deprecated)]
 fn cpu() -> Device {
-    Device::ndarray()
+    rtr::backend::Backend::reference_device(false)
 }
 
 fn values(t: Tensor<3>) -> Vec<f64> {

@@ -14,9 +14,8 @@ use rtr::sim2real::simulate::{Candidate, batches};
 use rtr::sim2real::windows::{Starts, windows};
 use rtr::sim2real::{GeneratorConfig, Report, Sim2RealOptions, Uncatalogued, generate, identify};
 
-#[allow(deprecated)]
 fn device() -> Device {
-    Device::ndarray()
+    rtr::backend::Backend::reference_device(false)
 }
 
 fn run_blind(config: &GeneratorConfig) -> Report {

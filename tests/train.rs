@@ -337,8 +337,7 @@ fn rtr_scene_level_ppo_lowers_its_loss() {
 /// in parallel cannot interleave their draws with it.
 fn reference_policy(dir: &Path) -> String {
     let config = tiny("IL", "", "");
-    #[allow(deprecated)]
-    let device = burn::prelude::Device::ndarray();
+    let device = rtr::backend::Backend::reference_device(false);
     let path = dir.join("reference.bpk");
     rtr::seeding::with_seeded_device(&device, 99, || {
         rtr::model::PolicyNetwork::new(&config.model, &device).save_file(&path)
@@ -469,8 +468,7 @@ fn policy_values(run: &Path, config: &TrainConfig) -> Vec<f32> {
     let dir = rtr::train::checkpoint::latest(run)
         .expect("pointer")
         .expect("a checkpoint");
-    #[allow(deprecated)]
-    let device = burn::prelude::Device::ndarray();
+    let device = rtr::backend::Backend::reference_device(false);
     parameter_values(
         &rtr::train::load_policy(&dir.join("policy.bpk"), &config.model, &device).expect("loads"),
     )
@@ -600,8 +598,7 @@ fn a_diverging_run_stops_with_its_last_good_checkpoint() {
         "{}",
         latest.display()
     );
-    #[allow(deprecated)]
-    let device = burn::prelude::Device::ndarray();
+    let device = rtr::backend::Backend::reference_device(false);
     rtr::train::load_policy(&latest.join("policy.bpk"), &config.model, &device).expect("loads");
 }
 
@@ -656,8 +653,7 @@ fn a_warm_started_run_begins_from_its_initial_policy_and_warms_up_the_value() {
         let rows = train(config.clone(), out, false, None);
         (rows, policy_values(out, &config))
     };
-    #[allow(deprecated)]
-    let device = burn::prelude::Device::ndarray();
+    let device = rtr::backend::Backend::reference_device(false);
     let initial = parameter_values(
         &rtr::train::load_policy(Path::new(&init), &tiny("IL", "", "").model, &device)
             .expect("initial policy"),
@@ -796,8 +792,7 @@ fn rtr_at_lambda_zero_waits_out_the_warm_up_then_imitates() {
         (0.0, 0.0, 0.0),
         "{rows:?}"
     );
-    #[allow(deprecated)]
-    let device = burn::prelude::Device::ndarray();
+    let device = rtr::backend::Backend::reference_device(false);
     let initial = parameter_values(
         &rtr::train::load_policy(Path::new(&init), &config.model, &device).expect("initial"),
     );
@@ -818,8 +813,7 @@ fn rtr_at_lambda_zero_waits_out_the_warm_up_then_imitates() {
 /// size) is refused with what to change, not as a broken file.
 #[test]
 fn a_model_loaded_with_another_shape_names_the_model_section() {
-    #[allow(deprecated)]
-    let device = burn::prelude::Device::ndarray();
+    let device = rtr::backend::Backend::reference_device(false);
     let small = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/il/policy.bpk");
     let paper_size = rtr::model::ModelConfig::default();
     let err = rtr::train::load_policy(&small, &paper_size, &device).expect_err("32 into 128");
@@ -889,8 +883,7 @@ fn resume_and_loading_refuse_missing_tampered_and_corrupted_checkpoints() {
         "{text}"
     );
     // The same bytes without a state to check them against: NaN weights, refused by name.
-    #[allow(deprecated)]
-    let device = burn::prelude::Device::ndarray();
+    let device = rtr::backend::Backend::reference_device(false);
     let err =
         rtr::train::load_policy(&policy_path, &config().model, &device).expect_err("NaN weights");
     let text = err.to_string();
@@ -1067,13 +1060,11 @@ fn collected(
     rtr::model::ValueNetwork,
     Vec<rtr::train::experience::Experience>,
 ) {
-    use burn::prelude::*;
     use rtr::model::{PolicyNetwork, ValueNetwork};
 
     let mut config = tiny("RL", "alpha = 0.5", "");
     ppo(&mut config.ppo);
-    #[allow(deprecated)]
-    let device = Device::ndarray();
+    let device = rtr::backend::Backend::reference_device(false);
     let policy = PolicyNetwork::new(&config.model, &device);
     let value = ValueNetwork::new(&config.model, &device);
     let experience = collected_by(&config.ppo, &policy, &value, steps, seeds);
@@ -1110,12 +1101,10 @@ fn collected_from(
     steps: usize,
     seeds: std::ops::Range<u64>,
 ) -> Vec<rtr::train::experience::Experience> {
-    use burn::prelude::*;
     use rtr::sim::{Dynamics, MapCaches};
     use rtr::train::experience::{CollectNetworks, RewardSettings, collect};
 
-    #[allow(deprecated)]
-    let device = Device::ndarray();
+    let device = rtr::backend::Backend::reference_device(false);
     let mut caches = MapCaches::default();
     let nets = CollectNetworks {
         policy,
@@ -1440,8 +1429,7 @@ fn sigma_from_the_logs_leaves_every_parameter_trained() {
     let dir = tempfile::tempdir().expect("temp dir");
     let file = reference_policy(dir.path());
     let config = tiny("IL", "", "");
-    #[allow(deprecated)]
-    let device = burn::prelude::Device::ndarray().autodiff();
+    let device = rtr::backend::Backend::reference_device(true);
     let loaded = rtr::train::checkpoint::load_policy(Path::new(&file), &config.model, &device)
         .expect("load");
     let mut untracked = Untracked(Vec::new());

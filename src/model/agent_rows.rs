@@ -133,8 +133,7 @@ mod tests {
 
     #[test]
     fn packing_keeps_the_present_agents_in_order_and_unpacking_restores_their_slots() {
-        #[allow(deprecated)]
-        let device = Device::ndarray();
+        let device = crate::backend::Backend::reference_device(false);
         // Scene 0: agents 1 and 3 present; scene 1: agent 0 only; scene 2: none.
         let present = Tensor::<2, Bool>::from_data(
             TensorData::new(

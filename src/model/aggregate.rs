@@ -57,8 +57,7 @@ pub fn masked_max(messages: Tensor<4>, mask: Tensor<3, Bool>) -> Tensor<3> {
 
 /// Whether `device` (autodiff or not) runs on burn-ndarray.
 fn on_ndarray(device: &Device) -> bool {
-    #[allow(deprecated)] // the device burn-ndarray has (one CPU device)
-    let ndarray = Device::ndarray();
+    let ndarray = crate::backend::Backend::reference_device(false);
     device.clone().inner() == ndarray
 }
 
@@ -107,8 +106,7 @@ mod tests {
 
     #[test]
     fn gathers_rows_per_scene() {
-        #[allow(deprecated)]
-        let device = Device::ndarray();
+        let device = crate::backend::Backend::reference_device(false);
         let nodes = Tensor::<3>::from_data(
             TensorData::new((0..12).map(|v| v as f32).collect(), [2, 3, 2]),
             &device,
@@ -121,8 +119,7 @@ mod tests {
 
     #[test]
     fn masked_max_ignores_masked_entries_and_empties_to_zero() {
-        #[allow(deprecated)]
-        let device = Device::ndarray();
+        let device = crate::backend::Backend::reference_device(false);
         let messages = Tensor::<4>::from_data(
             TensorData::new(vec![1.0f32, -5.0, 7.0, 3.0, -2.0, -4.0], [1, 2, 3, 1]),
             &device,

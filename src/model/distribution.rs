@@ -131,8 +131,7 @@ mod tests {
 
     #[test]
     fn log_prob_entropy_and_samples_match_the_normal() {
-        #[allow(deprecated)]
-        let device = Device::ndarray();
+        let device = crate::backend::Backend::reference_device(false);
         let dist = ActionDistribution {
             mean: Tensor::from_data(TensorData::new(vec![1.0f32, -0.5], [1, 1, 2]), &device),
             log_std: Tensor::from_data(
@@ -178,8 +177,7 @@ mod tests {
     /// eta, less ln sqrt(1 - rho^2) per control.
     #[test]
     fn following_the_previous_noise_is_an_ar1_step_of_unit_variance() {
-        #[allow(deprecated)]
-        let device = Device::ndarray();
+        let device = crate::backend::Backend::reference_device(false);
         let (n, rho) = (100_000, [0.8, 0.8]);
         let normal = |seed: u64| {
             device.seed(seed);
@@ -224,8 +222,7 @@ mod tests {
 
     #[test]
     fn kl_is_zero_for_equal_normals_and_matches_the_closed_form() {
-        #[allow(deprecated)]
-        let device = Device::ndarray();
+        let device = crate::backend::Backend::reference_device(false);
         let normal = |mean: [f32; 2], sigma: [f32; 2]| ActionDistribution {
             mean: Tensor::from_data(TensorData::new(mean.to_vec(), [1, 1, 2]), &device),
             log_std: Tensor::from_data(
@@ -248,8 +245,7 @@ mod tests {
     /// The exact KL as the penalty would give that gradient zero: it does not depend on a.
     #[test]
     fn the_sampled_log_ratio_has_the_kl_as_mean_and_its_gradient_as_score_gradient() {
-        #[allow(deprecated)]
-        let device = Device::ndarray();
+        let device = crate::backend::Backend::reference_device(false);
         let n = 200_000;
         let normal = |mean: [f32; 2], sigma: [f32; 2]| ActionDistribution {
             mean: Tensor::<3>::from_data(TensorData::new(mean.to_vec(), [1, 1, 2]), &device)

@@ -491,8 +491,7 @@ mod tests {
     /// else.
     #[test]
     fn motion_gain_scales_only_the_motion_inputs() {
-        #[allow(deprecated)]
-        let device = Device::ndarray();
+        let device = crate::backend::Backend::reference_device(false);
         let (b, n, l) = (2, 4, 6);
         let agents = Tensor::<3>::random([b, n, 4], Distribution::Uniform(-20.0, 20.0), &device);
         let lanes = Tensor::<3>::random([b, l, 3], Distribution::Uniform(-20.0, 20.0), &device);

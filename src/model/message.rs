@@ -154,8 +154,7 @@ mod tests {
     /// The widened layer's messages on inputs whose new features are zero are the old ones.
     #[test]
     fn extra_inputs_at_zero_leave_the_messages_unchanged() {
-        #[allow(deprecated)]
-        let device = Device::ndarray();
+        let device = crate::backend::Backend::reference_device(false);
         let (hidden, pose_features, extra) = (8, 5, 3);
         let message = EdgeMessage::new(hidden, pose_features, &device);
         let senders = Tensor::<3>::random([2, 4, hidden], Distribution::Default, &device);

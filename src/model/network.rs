@@ -458,8 +458,7 @@ mod tests {
     #[test]
     fn adding_edge_motion_keeps_the_weights_and_trains_the_new_inputs() {
         use rand::SeedableRng;
-        #[allow(deprecated)]
-        let device = Device::ndarray().autodiff();
+        let device = crate::backend::Backend::reference_device(true);
         let batch = merge_batch(&device);
         let pose_only = narrow_config();
         let policy = PolicyNetwork::new(&pose_only, &device);
@@ -542,8 +541,7 @@ mod tests {
     /// of computing them at every step.
     #[test]
     fn cached_lane_terms_change_no_output_or_gradient() {
-        #[allow(deprecated)]
-        let device = Device::ndarray().autodiff();
+        let device = crate::backend::Backend::reference_device(true);
         let batch = merge_batch(&device);
         let config = narrow_config();
         let policy = PolicyNetwork::new(&config, &device);
@@ -614,8 +612,7 @@ mod tests {
     #[test]
     fn cropped_lane_rounds_match_the_whole_graph() {
         use crate::model::lane_crop::CropScope;
-        #[allow(deprecated)]
-        let device = Device::ndarray().autodiff();
+        let device = crate::backend::Backend::reference_device(true);
         let od = ProceduralMap::preset("on_ramp_merge")
             .and_then(|p| p.build())
             .expect("map");
@@ -724,8 +721,7 @@ mod tests {
     fn packed_agent_rows_match_the_padded_computation() {
         use crate::model::agent_rows::AgentRows;
         use crate::model::lane_crop::CropScope;
-        #[allow(deprecated)]
-        let device = Device::ndarray().autodiff();
+        let device = crate::backend::Backend::reference_device(true);
         let batch = merge_batch(&device);
         let mut frames = logged_frames(&batch, batch.history_steps);
         // Scenes of 4, 5 and 6 agents; agents 1 and 3 of the last scene have left the road.
@@ -770,8 +766,7 @@ mod tests {
     /// for the policy's config, and gives one value per agent.
     #[test]
     fn a_narrower_value_network_reads_the_policy_inputs() {
-        #[allow(deprecated)]
-        let device = Device::ndarray();
+        let device = crate::backend::Backend::reference_device(false);
         let batch = merge_batch(&device);
         let config = ModelConfig {
             value_hidden: Some(8),

@@ -76,8 +76,7 @@ mod tests {
 
     #[test]
     fn a_slower_car_ahead_closes_at_the_speed_difference() {
-        #[allow(deprecated)]
-        let device = Device::ndarray();
+        let device = crate::backend::Backend::reference_device(false);
         // Receiver heading +y at 35 m/s; a car 20 m ahead (also +y) at 28 m/s.
         let pi2 = std::f32::consts::FRAC_PI_2;
         let receiver = states(&[[5.0, -3.0, pi2, 35.0]], &device);
@@ -91,8 +90,7 @@ mod tests {
 
     #[test]
     fn a_car_passing_alongside_has_no_range_rate() {
-        #[allow(deprecated)]
-        let device = Device::ndarray();
+        let device = crate::backend::Backend::reference_device(false);
         // Sender 3.5 m to the left (receiver faces +x), 5 m/s faster: moving, not closing.
         let receiver = states(&[[0.0, 0.0, 0.0, 30.0]], &device);
         let sender = states(&[[0.0, 3.5, 0.0, 35.0]], &device);
@@ -103,8 +101,7 @@ mod tests {
 
     #[test]
     fn invariant_to_moving_the_scene() {
-        #[allow(deprecated)]
-        let device = Device::ndarray();
+        let device = crate::backend::Backend::reference_device(false);
         let a = [[3.0, -4.0, 0.3, 20.0], [100.0, 7.0, -2.0, 5.0]];
         let b = [[10.0, 1.0, 1.1, 31.0], [90.0, 7.5, 3.0, 0.0]];
         let moved = |p: &[[f32; 4]; 2]| {

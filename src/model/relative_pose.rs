@@ -99,8 +99,7 @@ mod tests {
 
     #[test]
     fn encodes_bearing_heading_and_distance_in_the_receivers_frame() {
-        #[allow(deprecated)]
-        let device = Device::ndarray();
+        let device = crate::backend::Backend::reference_device(false);
         // Receiver facing +y; sender 10 m to its left (-x in the world), facing -x.
         let pi2 = std::f32::consts::FRAC_PI_2;
         let receiver = poses(&[[1.0, 2.0, pi2]], &device);
@@ -115,8 +114,7 @@ mod tests {
 
     #[test]
     fn invariant_to_moving_both_poses_together() {
-        #[allow(deprecated)]
-        let device = Device::ndarray();
+        let device = crate::backend::Backend::reference_device(false);
         let a = [[3.0, -4.0, 0.3], [100.0, 7.0, -2.0]];
         let b = [[10.0, 1.0, 1.1], [90.0, 7.5, 3.0]];
         let moved = |p: &[[f32; 3]; 2]| {

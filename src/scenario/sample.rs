@@ -501,8 +501,7 @@ pub(super) fn check_initial(
 /// reference driver, without early termination.
 pub fn simulate_reference(scenario: &ConcreteScenario) -> Result<(Scene, Rollout, HeroScripts)> {
     let scene = scenario.to_scene()?;
-    #[allow(deprecated)]
-    let device = Device::ndarray();
+    let device = crate::backend::Backend::reference_device(false);
     let batch = SceneBatch::from_scenes(&[&scene], &device)?;
     let dynamics = Dynamics::bicycle(scenario.dt);
     let mut idm = IdmDriver::new(&[&scene], IdmParams::default(), ActionLimits::default());

@@ -326,8 +326,7 @@ mod tests {
             assert_eq!(Effect::from_name(effect.name()), Some(effect));
             for s in effect.params() {
                 assert!(s.min < s.start && s.start < s.max, "{effect} {}", s.name);
-                #[allow(deprecated)]
-                let device = Device::ndarray();
+                let device = crate::backend::Backend::reference_device(false);
                 let raw = Tensor::<1>::from_floats([unbounded(s.start, s) as f32], &device);
                 let back = bounded(raw, s).into_scalar::<f64>();
                 assert!((back - s.start).abs() < 1e-5 * (s.max - s.min));

@@ -233,9 +233,8 @@ mod tests {
     use crate::sim::terms::Drag;
     use burn::tensor::TensorData;
 
-    #[allow(deprecated)]
     fn device() -> Device {
-        Device::ndarray()
+        crate::backend::Backend::reference_device(false)
     }
 
     fn scalar(v: f64) -> Tensor<2> {

@@ -212,8 +212,7 @@ mod tests {
     use burn::tensor::TensorData;
 
     fn scalar(v: f64) -> Tensor<2> {
-        #[allow(deprecated)]
-        let device = Device::ndarray();
+        let device = crate::backend::Backend::reference_device(false);
         Tensor::from_data(TensorData::new(vec![v as f32], [1, 1]), &device)
     }
 

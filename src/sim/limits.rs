@@ -94,8 +94,7 @@ mod tests {
 
     #[test]
     fn soft_clamp_is_identity_near_zero_saturates_and_inverts() {
-        #[allow(deprecated)]
-        let device = Device::ndarray();
+        let device = crate::backend::Backend::reference_device(false);
         let raw = vec![-100.0f32, -1.0, -0.01, 0.0, 0.01, 1.0, 100.0];
         let t = Tensor::<2>::from_data(burn::tensor::TensorData::new(raw.clone(), [1, 7]), &device);
         let out = soft_clamp(t, -8.0, 4.0)

@@ -275,9 +275,8 @@ mod tests {
     use crate::sim::dynamics::{Dynamics, Integrator};
     use crate::sim::state::VehicleState;
 
-    #[allow(deprecated)]
     fn device() -> Device {
-        Device::ndarray()
+        crate::backend::Backend::reference_device(false)
     }
 
     fn scalar(v: f64) -> Tensor<2> {

@@ -163,10 +163,10 @@ pub fn bench_training(
     let il = run(Method::Il)?;
     let ppo = run(Method::Rl)?;
     let per_s = |steps: usize, s: f64| steps as f64 / s.max(1e-9);
-    #[allow(deprecated)]
     let parameters = {
         use burn::module::Module;
-        crate::model::PolicyNetwork::new(&model, &burn::prelude::Device::ndarray()).num_params()
+        crate::model::PolicyNetwork::new(&model, &crate::backend::Backend::reference_device(false))
+            .num_params()
     };
     Ok(TrainBenchReport {
         backend: backend.to_string(),

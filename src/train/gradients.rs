@@ -162,8 +162,7 @@ mod tests {
 
     #[test]
     fn graph_by_graph_gradients_add_up_to_the_gradient_of_the_sum() {
-        #[allow(deprecated)]
-        let device = Device::ndarray().autodiff();
+        let device = crate::backend::Backend::reference_device(true);
         let policy: Linear = LinearConfig::new(3, 2).init(&device);
         let value: Linear = LinearConfig::new(3, 1).init(&device);
         let x = Tensor::<2>::from_data(TensorData::new(vec![1.0f32, -2.0, 3.0], [1, 3]), &device);
@@ -216,8 +215,7 @@ mod tests {
 
     #[test]
     fn no_graph_leaves_the_gradients_empty() {
-        #[allow(deprecated)]
-        let device = Device::ndarray().autodiff();
+        let device = crate::backend::Backend::reference_device(true);
         let policy: Linear = LinearConfig::new(3, 2).init(&device);
         let graphwise = GraphwiseGradients::<Linear, Linear>::new(&policy, None);
         let (policy_grads, value_grads) = graphwise.finish();
@@ -227,8 +225,7 @@ mod tests {
 
     #[test]
     fn clipping_scales_every_tensor_by_one_global_factor() {
-        #[allow(deprecated)]
-        let device = Device::ndarray().autodiff();
+        let device = crate::backend::Backend::reference_device(true);
         let layer: Linear = LinearConfig::new(3, 2).init(&device);
         let x = Tensor::<2>::from_data(TensorData::new(vec![1.0f32, -2.0, 3.0], [1, 3]), &device);
         let loss = layer.forward(x).sum().mul_scalar(10.0);

@@ -247,8 +247,7 @@ mod tests {
     use burn::tensor::TensorData;
 
     fn device() -> Device {
-        #[allow(deprecated)]
-        Device::ndarray()
+        crate::backend::Backend::reference_device(false)
     }
 
     fn t3(v: &[f32], shape: [usize; 3]) -> Tensor<3> {

@@ -182,8 +182,7 @@ mod tests {
     /// direction is A (a - mu) / sigma^2; an unexplored control and a terminated step get none.
     #[test]
     fn the_descent_direction_is_the_score_times_the_advantage() {
-        #[allow(deprecated)]
-        let device = Device::ndarray();
+        let device = crate::backend::Backend::reference_device(false);
         let mean = Tensor::<3>::from_data(
             burn::tensor::TensorData::new(vec![0.5f32, 0.01, -1.0, 0.0], [1, 2, 2]),
             &device,
