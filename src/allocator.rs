@@ -4,11 +4,9 @@
 //! default glibc serves blocks above its mmap threshold (at most 32 MiB) with `mmap` and gives
 //! freed heap tops back to the kernel, so the next step page-faults and zeroes the same memory
 //! again, and with several worker threads the faults contend on the process's memory-map lock.
-//! Keeping freed memory in the heap removed much of that. Measured side by side (`cargo bench
-//! --bench side_by_side`, 5 interleaved runs, `rtr bench model` at the paper's size, 2 cores):
-//! forward + backward 2867 -> 2429 ms with 2 workers, 3861 -> 3365 ms with one, forward
-//! 1.12-1.20x faster, peak memory +5 %. No crate sets these; mimalloc as the global allocator
-//! was tried instead and was slower here.
+//! Keeping freed memory in the heap avoids that, for a few percent more peak memory (the
+//! speed-up: `docs/backends-and-speed.md`). No crate sets these options; mimalloc as the
+//! global allocator was slower here.
 
 /// Largest mmap threshold glibc accepts on 64-bit targets (`DEFAULT_MMAP_THRESHOLD_MAX`).
 const MMAP_THRESHOLD: i32 = 32 << 20;

@@ -1,7 +1,7 @@
 //! rtr: learning realistic traffic agents in closed loop (RTR, CoRL 2023) on burn.
 //!
 //! Data flows one way. The modules stand in layers, lowest first, and a module uses only
-//! modules of its own layer or a lower one (`tests/layers.rs` reads this list and `src/`, and
+//! modules of its own layer or a lower one (`tests/structure.rs` reads this list and `src/`, and
 //! fails on an upward `crate::` path). See `README.md` for the tour.
 //!
 //! 1. `error`, `io`, `xml`, `geometry`, `vehicle`, `agent_view`, `seeding`, `usage`,

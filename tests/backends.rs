@@ -11,7 +11,6 @@ use burn::tensor::{Bool, Int, TensorData};
 use rtr::backend::Backend;
 use rtr::model::{AgentInput, LaneInput, ModelConfig};
 use rtr::scene::{Scene, SceneBatch};
-use rtr::sim::bench::agent_features;
 use rtr::sim::{
     Controls, Dynamics, MapCaches, Observation, RolloutConfig, imitation_loss, rollout,
 };
@@ -27,7 +26,7 @@ fn run(backend: Backend, scenes: &[&Scene]) -> (f64, Vec<f64>, Vec<f64>) {
     let w2 = Tensor::<2>::from_data(TensorData::new(w2_init, [8, 2]), &device);
     let mut policy = |obs: &Observation| {
         let [b, n] = obs.state.speed.dims();
-        let x = agent_features(obs).reshape([b * n, 3]);
+        let x = obs.kinematic_features().reshape([b * n, 3]);
         let out = x
             .matmul(w1.clone())
             .tanh()

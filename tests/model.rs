@@ -12,8 +12,8 @@ use rtr::map::{LaneGraph, Map, straight};
 use rtr::model::{
     ActionMode, AgentInput, LaneInput, ModelConfig, NetworkPolicy, PolicyNetwork, ValueNetwork,
 };
+use rtr::scene::synthetic_scene;
 use rtr::scene::{Scene, SceneBatch};
-use rtr::sim::bench::synthetic_scene;
 use rtr::sim::{Dynamics, MapCaches, RolloutConfig, imitation_loss, logged_frames, rollout};
 
 fn device(autodiff: bool) -> Device {

@@ -1,6 +1,6 @@
 //! How often the logged drivers close on the car ahead, and what they do next: the examples
-//! imitation has for braking. A trained policy that never brakes for a slower car ahead
-//! (issue 18) can only have learned it from demonstrations like these.
+//! imitation has for braking: a policy can learn to brake for a slower car ahead only from
+//! demonstrations like these.
 //!
 //! A *closing event* is a follower, sampled every [`SAMPLE_DT_S`], whose leader (the nearest
 //! vehicle ahead in its lane, as the evaluation's lead-gap feature finds it,

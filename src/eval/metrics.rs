@@ -78,7 +78,7 @@ impl Additive for SceneTally {
 pub enum Metric {
     CollisionPct,
     OffroadPct,
-    /// Agents with either infraction (not in the paper; issue 18).
+    /// Agents with either infraction (not in the paper).
     InfractionPct,
     FdeM,
     AteM,

@@ -310,45 +310,7 @@ impl ProceduralMap {
                 length,
                 curvature,
                 layout,
-            } => {
-                check_common(lanes, 1, lane_width, length)?;
-                let width = check_layout(layout, lanes, lane_width)?;
-                if !curvature.is_finite() || curvature.abs() * width >= 0.5 {
-                    return Err(bad(format!(
-                        "procedural map: curvature {curvature} 1/m is too tight for a {width} m wide road \
-                         (expected |curvature| * width < 0.5)"
-                    )));
-                }
-                // The arc and the two clothoids turn the road by 0.45 * length * curvature.
-                let turn = 0.45 * length * curvature.abs();
-                if turn > std::f64::consts::PI {
-                    return Err(bad(format!(
-                        "procedural map: curvature {curvature} 1/m over {length} m turns the road by \
-                         {turn:.2} rad, so it would cross itself; expected at most pi"
-                    )));
-                }
-                let k = curvature;
-                let pieces = vec![
-                    (0.2 * length, GeometryKind::Line),
-                    (
-                        0.15 * length,
-                        GeometryKind::Spiral {
-                            curv_start: 0.0,
-                            curv_end: k,
-                        },
-                    ),
-                    (0.3 * length, GeometryKind::Arc { curvature: k }),
-                    (
-                        0.15 * length,
-                        GeometryKind::Spiral {
-                            curv_start: k,
-                            curv_end: 0.0,
-                        },
-                    ),
-                    (0.2 * length, GeometryKind::Line),
-                ];
-                Ok(single_road(length, pieces, lanes, lane_width, layout))
-            }
+            } => curve_map(lanes, lane_width, length, curvature, layout),
             ProceduralMap::OnRampMerge {
                 lanes,
                 lane_width,
@@ -429,6 +391,53 @@ impl ProceduralMap {
             }
         }
     }
+}
+
+/// A road that bends through clothoid - arc - clothoid between two straights.
+fn curve_map(
+    lanes: usize,
+    lane_width: f64,
+    length: f64,
+    curvature: f64,
+    layout: Layout,
+) -> Result<OpenDrive> {
+    check_common(lanes, 1, lane_width, length)?;
+    let width = check_layout(layout, lanes, lane_width)?;
+    if !curvature.is_finite() || curvature.abs() * width >= 0.5 {
+        return Err(bad(format!(
+            "procedural map: curvature {curvature} 1/m is too tight for a {width} m wide road \
+                 (expected |curvature| * width < 0.5)"
+        )));
+    }
+    // The arc and the two clothoids turn the road by 0.45 * length * curvature.
+    let turn = 0.45 * length * curvature.abs();
+    if turn > std::f64::consts::PI {
+        return Err(bad(format!(
+            "procedural map: curvature {curvature} 1/m over {length} m turns the road by \
+                 {turn:.2} rad, so it would cross itself; expected at most pi"
+        )));
+    }
+    let k = curvature;
+    let pieces = vec![
+        (0.2 * length, GeometryKind::Line),
+        (
+            0.15 * length,
+            GeometryKind::Spiral {
+                curv_start: 0.0,
+                curv_end: k,
+            },
+        ),
+        (0.3 * length, GeometryKind::Arc { curvature: k }),
+        (
+            0.15 * length,
+            GeometryKind::Spiral {
+                curv_start: k,
+                curv_end: 0.0,
+            },
+        ),
+        (0.2 * length, GeometryKind::Line),
+    ];
+    Ok(single_road(length, pieces, lanes, lane_width, layout))
 }
 
 /// Validates the layout; returns the total road width (m).

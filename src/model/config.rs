@@ -47,7 +47,7 @@ pub struct ModelConfig {
     pub log_std_range: [f64; 2],
     /// Not in the paper: agent <- agent edges also carry the sender's motion relative to the
     /// receiver (relative velocity, range rate; [`super::relative_motion`]), not only its pose.
-    /// Off by default (the paper's edges; every model trained before it loads unchanged).
+    /// Off by default (the paper's edges).
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub agent_edge_motion: bool,
     /// Not in the paper: the relative-motion edge inputs are multiplied by this before their
@@ -55,21 +55,18 @@ pub struct ModelConfig {
     /// of its gradient, so an input `g` times larger lets its contribution grow `g` times
     /// faster: a fine-tune that adds the motion inputs with zero weights
     /// (`[init] agent_edge_motion_scale = 0`) can learn them at `g` times the learning rate of
-    /// the trained weights, with one optimizer. At 1 (default; every model trained before this
-    /// field loads unchanged) 216 steps at 2e-4 move each new weight by at most ~0.04.
-    /// Measured at 10 in RTR (`experiments/recipe/ppo_credit/`, section 5): the policy cars run
-    /// into each other, 42.8 % long-tail collisions averaged against 14.0 % at 1.
+    /// the trained weights, with one optimizer. At 1 (default) a short fine-tune barely moves the
+    /// new weights; a large gain lets them swamp the trained ones (`experiments/recipe/ppo_credit/`).
     #[serde(skip_serializing_if = "is_unit_gain")]
     pub agent_edge_motion_gain: f64,
     /// Multiplier bringing lane-node curvature (1/m) to network units (the other lane-node
-    /// features' scales are fixed in [`super::input`]). The default 100 (every model trained
-    /// before this field loads unchanged) puts a 100 m radius at 1 but the A9's 3.3 km radius
-    /// at 0.03; 1000 puts motorway curves (0.0003 to 0.003 1/m) at 0.3 to 3 (measured at 1000
-    /// from a model trained at 100: no better lane keeping, `experiments/recipe/agent_dropout/`).
+    /// features' scales are fixed in [`super::input`]). The default 100 puts a 100 m radius at 1
+    /// but the A9's 3.3 km radius at 0.03; 1000 puts motorway curves (0.0003 to 0.003 1/m) at
+    /// 0.3 to 3 (compared in `experiments/recipe/agent_dropout/`).
     #[serde(skip_serializing_if = "is_default_curvature_scale")]
     pub lane_curvature_scale: f64,
     /// Not in the paper: whether lane nodes carry the road's speed limit (the paper's feature;
-    /// default, so every model trained before this field loads unchanged). Every recorded road
+    /// default). Every recorded road
     /// has one limit on all its lanes (A9 100 km/h, the US-101 clips none, so 130), so the
     /// feature names the road rather than describing a lane: a policy trained on both keys its
     /// steering on it, and the same IL policy leaves 85 / 35 / 25 % of the long-tail agents off
@@ -81,10 +78,9 @@ pub struct ModelConfig {
     /// Not in the paper: the steering mean is the network's output plus the bicycle model's
     /// steady-state steering on the agent's lane, `atan(L k)` ([`super::steer_feedforward`]),
     /// so the network learns the correction to lane following rather than each road's
-    /// curvature (measured: IL's long-tail off-road 34.9 -> 0.3 % at the same data and budget,
-    /// `experiments/recipe/steer_feedforward/`). Off by default (the paper's head; every model
-    /// trained before it loads unchanged). It adds no parameters, so any checkpoint can
-    /// warm-start either way.
+    /// curvature (its effect on lane keeping: `experiments/recipe/steer_feedforward/`). Off by
+    /// default (the paper's head). It adds no parameters, so any checkpoint can warm-start
+    /// either way.
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub lane_steer_feedforward: bool,
     /// Not in the paper (its value network is the policy's architecture): the value network's

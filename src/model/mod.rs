@@ -19,7 +19,6 @@
 
 pub mod agent_rows;
 pub mod aggregate;
-pub mod bench;
 pub mod config;
 pub mod distribution;
 #[cfg(feature = "flex")]

@@ -403,8 +403,8 @@ mod tests {
     use super::*;
     use crate::map::{LaneGraph, Map, ProceduralMap};
     use crate::model::interaction::needed_lane_hops;
+    use crate::scene::synthetic_scene;
     use crate::scene::{Scene, SceneBatch};
-    use crate::sim::bench::synthetic_scene;
     use crate::sim::logged_frames;
 
     /// Sum of squares of every gradient of a module's parameters.

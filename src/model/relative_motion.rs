@@ -3,9 +3,9 @@
 //!
 //! Why: with the paper's pose-only edges a receiver learns how fast the car ahead closes in only
 //! by pairing the sender's speed (inside the sender's embedding) with its own speed after a max
-//! over all senders, which loses which sender was which. The converged models (issue 18) showed
-//! no car-following response at all: their acceleration did not depend on the closing speed or
-//! the leader's braking. These features hand every edge the quantities a car-following rule
+//! over all senders, which loses which sender was which. Models trained with pose-only edges
+//! showed no car-following response (`experiments/main/car_following.md`): their acceleration
+//! did not depend on the closing speed or the leader's braking. These features hand every edge the quantities a car-following rule
 //! uses, the way GoRela's relative pose hands it the geometry.
 //!
 //! For a receiver at (x_i, y_i, theta_i) with speed s_i and a sender at (x_j, y_j, theta_j)

@@ -16,6 +16,9 @@ use crate::error::{Error, Result};
 use crate::io::parse_toml;
 use crate::map::ProceduralMap;
 
+/// A check's verdict: `Err((field, message))` names the field at fault.
+type FieldCheck = std::result::Result<(), (String, String)>;
+
 /// Which scenario sets a family feeds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -177,7 +180,7 @@ impl LogicalScenario {
 
     /// Main lanes named by the target and the heroes exist on the narrowest map the family
     /// can draw (1 = leftmost).
-    fn check_lane_numbers(&self) -> std::result::Result<(), (String, String)> {
+    fn check_lane_numbers(&self) -> FieldCheck {
         let lanes = super::sample::map_with(self, |_, range| range.low())
             .ok()
             .and_then(|map| serde_json::to_value(map).ok())
@@ -204,7 +207,16 @@ impl LogicalScenario {
 
     /// Checks what can be checked without drawing: names, ranges, the map template's keys.
     /// Errors are (field, message).
-    pub fn validate(&self) -> std::result::Result<(), (String, String)> {
+    pub fn validate(&self) -> FieldCheck {
+        self.check_name_and_duration()?;
+        self.check_map_params()?;
+        self.check_map_corners()?;
+        self.check_lane_numbers()?;
+        self.check_target_and_background()?;
+        self.check_heroes()
+    }
+
+    fn check_name_and_duration(&self) -> FieldCheck {
         let field = |f: &str| format!("field `{f}`");
         if self.name.is_empty()
             || !self
@@ -223,6 +235,13 @@ impl LogicalScenario {
                 format!("{} s: expected 1 to 60 s", self.duration_s),
             ));
         }
+        Ok(())
+    }
+
+    /// Every `map.*` range names a numeric parameter of the preset, within bounds (whole
+    /// numbers where the parameter is a count).
+    fn check_map_params(&self) -> FieldCheck {
+        let field = |f: &str| format!("field `{f}`");
         let preset = ProceduralMap::preset(&self.map.preset)
             .map_err(|e| (field("map.preset"), e.to_string()))?;
         let known = serde_json::to_value(&preset)
@@ -261,6 +280,11 @@ impl LogicalScenario {
                 ));
             }
         }
+        Ok(())
+    }
+
+    fn check_map_corners(&self) -> FieldCheck {
+        let field = |f: &str| format!("field `{f}`");
         // The maps at the extremes build: every parameter at its low end, then every one at
         // its high end (a cheap check of the corners that fail first, not every combination).
         for (end, pick) in [
@@ -276,7 +300,11 @@ impl LogicalScenario {
                     )
                 })?;
         }
-        self.check_lane_numbers()?;
+        Ok(())
+    }
+
+    fn check_target_and_background(&self) -> FieldCheck {
+        let field = |f: &str| format!("field `{f}`");
         let t = &self.target;
         t.station
             .check("target.station", 0.0, 10_000.0)
@@ -314,6 +342,11 @@ impl LogicalScenario {
                 .check("target.heading_error", -1.0, 1.0)
                 .map_err(|m| (field("target.heading_error"), m))?;
         }
+        Ok(())
+    }
+
+    fn check_heroes(&self) -> FieldCheck {
+        let field = |f: &str| format!("field `{f}`");
         // A scenario without heroes is the target alone on its road (and its background): how
         // the PPO probes pose a lane-keeping task.
         for (h, hero) in self.heroes.iter().enumerate() {

@@ -158,44 +158,13 @@ impl HeroScripts {
         self.heroes.iter().map(|h| h.progress.clone()).collect()
     }
 
-    /// Whether `trigger` fires now; `since` is when the previous phase completed (s).
-    fn fires(
-        trigger: &Trigger<f64>,
-        hero: &HeroState,
-        me: &AgentView,
-        target: &AgentView,
-        time: f64,
-        since: f64,
-    ) -> bool {
-        let rel = || relation(me, target);
-        match *trigger {
-            Trigger::Start => true,
-            Trigger::After { seconds } => time - since >= seconds - 1e-9,
-            Trigger::Travelled { metres } => hero.travelled >= metres,
-            _ if !target.present => false,
-            Trigger::AheadGapBelow { metres } => {
-                let r = rel();
-                r.along < 0.0 && r.gap < metres
-            }
-            Trigger::AheadGapAbove { metres } => {
-                let r = rel();
-                r.along < 0.0 && r.gap > metres
-            }
-            Trigger::BehindGapBelow { metres } => {
-                let r = rel();
-                r.along > 0.0 && r.gap < metres
-            }
-            Trigger::TtcBelow { seconds } => {
-                let r = rel();
-                r.gap > 0.0 && r.closing > 0.0 && r.gap / r.closing < seconds
-            }
-        }
-    }
-
     /// One hero's command at `step`.
     fn command(&mut self, k: usize, snapshot: &Snapshot, step: usize) -> Option<ControlCommand> {
-        let time = step as f64 * self.dt;
-        let dt = self.dt;
+        let clock = Clock {
+            step,
+            time: step as f64 * self.dt,
+            dt: self.dt,
+        };
         let hero = &mut self.heroes[k];
         let map = self.maps[hero.assignment.scene].clone();
         let agents = snapshot.scene(hero.assignment.scene);
@@ -204,14 +173,72 @@ impl HeroScripts {
             return None;
         }
         let target = agents.get(hero.assignment.target).copied()?;
-        if let Some(last) = hero.last_xy {
-            hero.travelled += ((me.x - last[0]).powi(2) + (me.y - last[1]).powi(2)).sqrt();
+        let (lane, s) = hero.locate(&map, &me)?;
+        hero.start_fired_phases(&map, lane, &me, &target, clock);
+        let (path_lane, path_s, offset) = hero.lateral_target(&map, lane, s, &me, clock);
+        let path = LanePath::new(&map, path_lane, path_s, 0.0, PATH_AHEAD_M);
+        let steer = steer_along(&me, &path, offset);
+        let accel = hero.longitudinal_accel(&self.idm, &path, agents, &target, clock);
+        // Never command a reversal: at most stop within this step.
+        let accel = accel.max(-me.speed / clock.dt);
+        Some(ControlCommand { accel, steer })
+    }
+}
+
+/// The time of the step a command is for.
+#[derive(Debug, Clone, Copy)]
+struct Clock {
+    step: usize,
+    /// `step * dt` (s).
+    time: f64,
+    dt: f64,
+}
+
+/// Whether `trigger` fires now; `since` is when the previous phase completed (s).
+fn fires(
+    trigger: &Trigger<f64>,
+    hero: &HeroState,
+    me: &AgentView,
+    target: &AgentView,
+    time: f64,
+    since: f64,
+) -> bool {
+    let rel = || relation(me, target);
+    match *trigger {
+        Trigger::Start => true,
+        Trigger::After { seconds } => time - since >= seconds - 1e-9,
+        Trigger::Travelled { metres } => hero.travelled >= metres,
+        _ if !target.present => false,
+        Trigger::AheadGapBelow { metres } => {
+            let r = rel();
+            r.along < 0.0 && r.gap < metres
         }
-        hero.last_xy = Some([me.x, me.y]);
-        // The lane kept and the arc length along it, found once per step.
-        let (lane, s) = match hero.lane {
+        Trigger::AheadGapAbove { metres } => {
+            let r = rel();
+            r.along < 0.0 && r.gap > metres
+        }
+        Trigger::BehindGapBelow { metres } => {
+            let r = rel();
+            r.along > 0.0 && r.gap < metres
+        }
+        Trigger::TtcBelow { seconds } => {
+            let r = rel();
+            r.gap > 0.0 && r.closing > 0.0 && r.gap / r.closing < seconds
+        }
+    }
+}
+
+impl HeroState {
+    /// Updates the distance travelled and returns the lane kept and the arc length along it,
+    /// found once per step (the lane a hero starts on is the one it is projected onto).
+    fn locate(&mut self, map: &Map, me: &AgentView) -> Option<(usize, f64)> {
+        if let Some(last) = self.last_xy {
+            self.travelled += ((me.x - last[0]).powi(2) + (me.y - last[1]).powi(2)).sqrt();
+        }
+        self.last_xy = Some([me.x, me.y]);
+        let (lane, s) = match self.lane {
             Some(l) => {
-                let (lane, s, _) = locate_on_lane(&map, l, [me.x, me.y]);
+                let (lane, s, _) = locate_on_lane(map, l, [me.x, me.y]);
                 (lane, s)
             }
             None => {
@@ -219,117 +246,151 @@ impl HeroScripts {
                 (p.lane, p.s)
             }
         };
-        hero.lane = Some(lane);
-        if hero.longitudinal.is_none() {
-            hero.longitudinal = Some(Longitudinal::Cruise { speed: me.speed });
+        self.lane = Some(lane);
+        if self.longitudinal.is_none() {
+            self.longitudinal = Some(Longitudinal::Cruise { speed: me.speed });
         }
+        Some((lane, s))
+    }
 
-        // Start every phase whose trigger fires, in order, each once the previous one has
-        // completed.
-        while let Some(phase) = hero.assignment.phases.get(hero.next_phase).cloned() {
-            let since = match hero.next_phase {
+    /// Starts every phase whose trigger fires, in order, each once the previous one has
+    /// completed.
+    fn start_fired_phases(
+        &mut self,
+        map: &Map,
+        lane: usize,
+        me: &AgentView,
+        target: &AgentView,
+        clock: Clock,
+    ) {
+        while let Some(phase) = self.assignment.phases.get(self.next_phase).cloned() {
+            let since = match self.next_phase {
                 0 => Some(0.0),
-                p => hero.progress[p - 1].done_step.map(|d| d as f64 * dt),
+                p => self.progress[p - 1].done_step.map(|d| d as f64 * clock.dt),
             };
             let Some(since) = since else { break };
-            if !Self::fires(&phase.trigger, hero, &me, &target, time, since) {
+            if !fires(&phase.trigger, self, me, target, clock.time, since) {
                 break;
             }
-            let p = hero.next_phase;
-            hero.progress[p].fired_step = Some(step);
-            hero.next_phase += 1;
-            match phase.action {
-                Action::ChangeLane {
-                    direction,
-                    lateral_speed,
-                } => {
-                    let l = &map.lanes()[lane];
-                    let side = match direction {
-                        Direction::Left => l.left_neighbour,
-                        Direction::Right => l.right_neighbour,
-                    };
-                    match side {
-                        Some(to) => {
-                            hero.lateral = Lateral::Change {
-                                to,
-                                lateral_speed,
-                                phase: p,
-                            }
-                        }
-                        None => {
-                            hero.progress[p].failed =
-                                Some(format!("no lane to the {direction:?} at step {step}"))
+            let p = self.next_phase;
+            self.progress[p].fired_step = Some(clock.step);
+            self.next_phase += 1;
+            self.start(p, &phase.action, map, lane, clock);
+        }
+    }
+
+    /// Starts phase `p`'s action. Actions that only set a target (speed, gap) complete at once;
+    /// manoeuvres complete when carried out.
+    fn start(&mut self, p: usize, action: &Action<f64>, map: &Map, lane: usize, clock: Clock) {
+        let done_now = match *action {
+            Action::ChangeLane {
+                direction,
+                lateral_speed,
+            } => {
+                let l = &map.lanes()[lane];
+                let side = match direction {
+                    Direction::Left => l.left_neighbour,
+                    Direction::Right => l.right_neighbour,
+                };
+                match side {
+                    Some(to) => {
+                        self.lateral = Lateral::Change {
+                            to,
+                            lateral_speed,
+                            phase: p,
                         }
                     }
+                    None => {
+                        self.progress[p].failed = Some(format!(
+                            "no lane to the {direction:?} at step {}",
+                            clock.step
+                        ))
+                    }
                 }
-                Action::Swerve {
-                    direction,
+                false
+            }
+            Action::Swerve {
+                direction,
+                amplitude,
+                period,
+            } => {
+                self.lateral = Lateral::Swerve {
+                    sign: if direction == Direction::Left {
+                        1.0
+                    } else {
+                        -1.0
+                    },
                     amplitude,
                     period,
-                } => {
-                    hero.lateral = Lateral::Swerve {
-                        sign: if direction == Direction::Left {
-                            1.0
-                        } else {
-                            -1.0
-                        },
-                        amplitude,
-                        period,
-                        since: time,
-                        phase: p,
-                    }
-                }
-                Action::Brake {
+                    since: clock.time,
+                    phase: p,
+                };
+                false
+            }
+            Action::Brake {
+                decel,
+                jerk,
+                min_speed,
+            } => {
+                self.longitudinal = Some(Longitudinal::Brake {
                     decel,
                     jerk,
                     min_speed,
-                } => {
-                    hero.longitudinal = Some(Longitudinal::Brake {
-                        decel,
-                        jerk,
-                        min_speed,
-                        since: time,
-                        phase: p,
-                    })
-                }
-                Action::Accelerate { accel, max_speed } => {
-                    hero.longitudinal = Some(Longitudinal::Accelerate { accel, max_speed });
-                    hero.progress[p].done_step = Some(step);
-                }
-                Action::Cruise { speed } => {
-                    hero.longitudinal = Some(Longitudinal::Cruise { speed });
-                    hero.progress[p].done_step = Some(step);
-                }
-                Action::FollowTarget {
+                    since: clock.time,
+                    phase: p,
+                });
+                false
+            }
+            Action::Accelerate { accel, max_speed } => {
+                self.longitudinal = Some(Longitudinal::Accelerate { accel, max_speed });
+                true
+            }
+            Action::Cruise { speed } => {
+                self.longitudinal = Some(Longitudinal::Cruise { speed });
+                true
+            }
+            Action::FollowTarget {
+                time_gap,
+                max_speed,
+            } => {
+                self.longitudinal = Some(Longitudinal::Follow {
                     time_gap,
                     max_speed,
-                } => {
-                    hero.longitudinal = Some(Longitudinal::Follow {
-                        time_gap,
-                        max_speed,
-                    });
-                    hero.progress[p].done_step = Some(step);
-                }
+                });
+                true
             }
+        };
+        if done_now {
+            self.progress[p].done_step = Some(clock.step);
         }
+    }
 
-        // Lateral: the lane to track and the offset from its centre.
+    /// The lane to track, the arc length along it and the offset from its centre; completes
+    /// a lane change or swerve when it is carried out.
+    fn lateral_target(
+        &mut self,
+        map: &Map,
+        lane: usize,
+        s: f64,
+        me: &AgentView,
+        clock: Clock,
+    ) -> (usize, f64, f64) {
         let ld = look_ahead(me.speed);
-        let (path_lane, path_s, offset) = match hero.lateral.clone() {
+        match self.lateral.clone() {
             Lateral::Keep => (lane, s, 0.0),
             Lateral::Change {
                 to,
                 lateral_speed,
                 phase,
             } => {
-                let (to, s_to, lateral) = locate_on_lane(&map, to, [me.x, me.y]);
+                let (to, s_to, lateral) = locate_on_lane(map, to, [me.x, me.y]);
                 if lateral.abs() < LANE_CHANGE_DONE_M {
-                    hero.lateral = Lateral::Keep;
-                    hero.lane = Some(to);
-                    hero.progress[phase].done_step.get_or_insert(step);
+                    self.lateral = Lateral::Keep;
+                    self.lane = Some(to);
+                    self.progress[phase].done_step.get_or_insert(clock.step);
                     (to, s_to, 0.0)
                 } else {
-                    hero.lateral = Lateral::Change {
+                    self.lateral = Lateral::Change {
                         to,
                         lateral_speed,
                         phase,
@@ -346,10 +407,10 @@ impl HeroScripts {
                 since,
                 phase,
             } => {
-                let tau = time - since + ld / me.speed.max(1.0);
-                if time - since >= period {
-                    hero.lateral = Lateral::Keep;
-                    hero.progress[phase].done_step.get_or_insert(step);
+                let tau = clock.time - since + ld / me.speed.max(1.0);
+                if clock.time - since >= period {
+                    self.lateral = Lateral::Keep;
+                    self.progress[phase].done_step.get_or_insert(clock.step);
                 }
                 let wave = if tau < period {
                     sign * amplitude * (std::f64::consts::TAU * tau / period).sin()
@@ -358,17 +419,27 @@ impl HeroScripts {
                 };
                 (lane, s, wave)
             }
-        };
-        let path = LanePath::new(&map, path_lane, path_s, 0.0, PATH_AHEAD_M);
-        let steer = steer_along(&me, &path, offset);
+        }
+    }
 
-        // Longitudinal.
-        let accel = match hero.longitudinal.clone() {
+    /// The acceleration of the current speed profile; completes a brake phase when its speed
+    /// is reached.
+    fn longitudinal_accel(
+        &mut self,
+        idm: &IdmParams,
+        path: &LanePath,
+        agents: &[AgentView],
+        target: &AgentView,
+        clock: Clock,
+    ) -> f64 {
+        let me = agents[self.assignment.agent];
+        let dt = clock.dt;
+        match self.longitudinal.clone() {
             None => 0.0,
             Some(Longitudinal::Cruise { speed }) => {
-                let leader = find_leader(&path, hero.assignment.agent, agents);
+                let leader = find_leader(path, self.assignment.agent, agents);
                 idm_accel(
-                    &self.idm,
+                    idm,
                     me.speed,
                     speed,
                     leader.map(|l| (l.gap, me.speed - l.speed)),
@@ -382,11 +453,11 @@ impl HeroScripts {
                 phase,
             }) => {
                 if me.speed <= min_speed + SPEED_REACHED {
-                    hero.progress[phase].done_step.get_or_insert(step);
+                    self.progress[phase].done_step.get_or_insert(clock.step);
                     // Hold the speed reached (a proportional hold, never below zero).
                     (min_speed - me.speed) / dt
                 } else {
-                    -(decel.min(jerk * (time - since + dt)))
+                    -(decel.min(jerk * (clock.time - since + dt)))
                 }
             }
             Some(Longitudinal::Accelerate { accel, max_speed }) => {
@@ -404,7 +475,7 @@ impl HeroScripts {
                     time_gap_s: time_gap,
                     min_gap_m: 1.0,
                     accel: 2.5,
-                    ..self.idm
+                    ..*idm
                 };
                 let ahead = path
                     .project([target.x, target.y])
@@ -415,10 +486,7 @@ impl HeroScripts {
                     });
                 idm_accel(&tailgater, me.speed, max_speed, ahead)
             }
-        };
-        // Never command a reversal: at most stop within this step.
-        let accel = accel.max(-me.speed / dt);
-        Some(ControlCommand { accel, steer })
+        }
     }
 }
 

@@ -142,39 +142,8 @@ fn draw(
     )
     .map_err(|e| e.to_string())?;
     let stats = ctx.stats;
-    let lane_stats = |r: usize| stats.lane(r).ok_or("the traffic statistics are empty");
 
-    // Target.
-    let t = &family.target;
-    let station = sampler.draw("target.station", &t.station);
-    let q = sampler.draw("target.speed_quantile", &t.speed_band);
-    let mut vehicle = lane_stats(rank(&map, t.lane, station))?.vehicle_at(q);
-    let speed = match &t.speed {
-        Some(r) => sampler.draw("target.speed", r),
-        None => vehicle.speed,
-    };
-    if vehicle.class != VehicleClass::Car {
-        vehicle = pick_class(stats, VehicleClass::Car, sampler)?;
-    }
-    let target = Planned {
-        role: AgentRole::Controlled,
-        lane: t.lane,
-        station,
-        speed,
-        vehicle,
-        fixed: true,
-    };
-    // Drawn only when asked for, so the draws of every other family stay what they were.
-    let target_error = PoseError {
-        lateral: t
-            .lateral_offset
-            .as_ref()
-            .map_or(0.0, |r| sampler.draw("target.lateral_offset", r)),
-        heading: t
-            .heading_error
-            .as_ref()
-            .map_or(0.0, |r| sampler.draw("target.heading_error", r)),
-    };
+    let (target, target_error) = plan_target(family, &map, stats, sampler)?;
 
     // Heroes.
     let mut heroes = Vec::new();
@@ -203,33 +172,7 @@ fn draw(
     planned.extend(heroes);
 
     let steps = ctx.history_steps;
-    let mut agents = Vec::with_capacity(planned.len());
-    for (i, p) in planned.iter().enumerate() {
-        let states: Vec<Option<[f64; 4]>> = if i == 0 && target_error != PoseError::NONE {
-            target_error.history(&map, p, steps, ctx.dt)
-        } else {
-            (0..=steps)
-                .map(|k| {
-                    let back = p.speed * (steps - k) as f64 * ctx.dt;
-                    place(&map, p.lane, p.station - back)
-                        .map(|pl| [pl.x, pl.y, pl.heading, p.speed].map(quantize))
-                })
-                .collect()
-        };
-        if states[steps].is_none() {
-            return Err(format!(
-                "agent {i} ({:?}) has no lane {} at station {:.1} m",
-                p.role, p.lane, p.station
-            ));
-        }
-        agents.push(ScenarioAgent {
-            role: p.role,
-            class: p.vehicle.class.clone(),
-            length: quantize(p.vehicle.length),
-            width: quantize(p.vehicle.width),
-            states,
-        });
-    }
+    let agents = histories(&map, &planned, target_error, ctx)?;
     check_initial(&map, &agents)?;
 
     let future_steps = (family.duration_s / ctx.dt).round() as usize;
@@ -262,6 +205,88 @@ fn draw(
             offroad_agents: Vec::new(),
         },
     })
+}
+
+/// The target's plan (a car at a drawn station and speed quantile of its lane) and how far
+/// its start is drawn from the lane's centre line.
+fn plan_target(
+    family: &LogicalScenario,
+    map: &Map,
+    stats: &TrafficStatistics,
+    sampler: &mut Sampler,
+) -> std::result::Result<(Planned, PoseError), String> {
+    let lane_stats = |r: usize| stats.lane(r).ok_or("the traffic statistics are empty");
+    let t = &family.target;
+    let station = sampler.draw("target.station", &t.station);
+    let q = sampler.draw("target.speed_quantile", &t.speed_band);
+    let mut vehicle = lane_stats(rank(map, t.lane, station))?.vehicle_at(q);
+    let speed = match &t.speed {
+        Some(r) => sampler.draw("target.speed", r),
+        None => vehicle.speed,
+    };
+    if vehicle.class != VehicleClass::Car {
+        vehicle = pick_class(stats, VehicleClass::Car, sampler)?;
+    }
+    let target = Planned {
+        role: AgentRole::Controlled,
+        lane: t.lane,
+        station,
+        speed,
+        vehicle,
+        fixed: true,
+    };
+    // Drawn only when asked for, so the draws of every other family stay what they were.
+    let target_error = PoseError {
+        lateral: t
+            .lateral_offset
+            .as_ref()
+            .map_or(0.0, |r| sampler.draw("target.lateral_offset", r)),
+        heading: t
+            .heading_error
+            .as_ref()
+            .map_or(0.0, |r| sampler.draw("target.heading_error", r)),
+    };
+
+    Ok((target, target_error))
+}
+
+/// Every planned agent's logged history: driving along its lane at its speed up to its
+/// station (the target from its drawn pose error); refuses an agent with no lane at its start.
+fn histories(
+    map: &Map,
+    planned: &[Planned],
+    target_error: PoseError,
+    ctx: &SamplingContext,
+) -> std::result::Result<Vec<ScenarioAgent>, String> {
+    let steps = ctx.history_steps;
+    let mut agents = Vec::with_capacity(planned.len());
+    for (i, p) in planned.iter().enumerate() {
+        let states: Vec<Option<[f64; 4]>> = if i == 0 && target_error != PoseError::NONE {
+            target_error.history(map, p, steps, ctx.dt)
+        } else {
+            (0..=steps)
+                .map(|k| {
+                    let back = p.speed * (steps - k) as f64 * ctx.dt;
+                    place(map, p.lane, p.station - back)
+                        .map(|pl| [pl.x, pl.y, pl.heading, p.speed].map(quantize))
+                })
+                .collect()
+        };
+        if states[steps].is_none() {
+            return Err(format!(
+                "agent {i} ({:?}) has no lane {} at station {:.1} m",
+                p.role, p.lane, p.station
+            ));
+        }
+        agents.push(ScenarioAgent {
+            role: p.role,
+            class: p.vehicle.class.clone(),
+            length: quantize(p.vehicle.length),
+            width: quantize(p.vehicle.width),
+            states,
+        });
+    }
+    Ok(agents)
 }
 
 /// How far the target starts from driving along its lane's centre line.
@@ -441,9 +466,9 @@ fn plan_background(
 /// leader ahead of a scenario vehicle is sped up likewise. A drawn rate below 0 (the gap
 /// opened) only pins the follower to its leader's speed: recorded opening rates come mostly
 /// from short gaps and would slow a follower 100 m back to a crawl. Speeds drawn per vehicle
-/// alone put fast cars a few seconds behind slow trucks: 8.5 % of the followers then started
-/// less than 5 s from a rear-end, against 0.4 % in the A9 logs, and the long-tail collisions
-/// were mostly rear-ends among the background rather than the scenarios' manoeuvres.
+/// alone put fast cars a few seconds behind slow trucks, far more often than the A9 logs do,
+/// so the long-tail collisions would be rear-ends among the background rather than the
+/// scenarios' manoeuvres.
 fn match_recorded_closing(
     on_lane: &mut [Planned],
     traffic: &LaneTraffic,

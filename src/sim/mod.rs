@@ -2,7 +2,6 @@
 //! smooth action limits, inverse dynamics, infraction checks, the rollout and the Huber
 //! imitation loss.
 
-pub mod bench;
 pub mod catalogue;
 pub mod dynamics;
 pub mod infractions;

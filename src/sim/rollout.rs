@@ -11,7 +11,7 @@ use burn::prelude::*;
 use burn::tensor::{Bool, TensorData};
 
 use super::dynamics::Dynamics;
-use super::infractions::{MapCache, MapCaches, StepBoxes, check_step};
+use super::infractions::{MapCache, MapCaches, StepBoxes, StepInfractions, check_step};
 use super::state::{Controls, VehicleState, WHEELBASE_RATIO};
 use crate::error::{Error, Result};
 use crate::scene::{Scene, SceneBatch};
@@ -39,6 +39,22 @@ pub struct Observation<'a> {
     pub state: &'a VehicleState,
     /// `[B, N]` (m).
     pub wheelbase: &'a Tensor<2>,
+}
+
+impl Observation<'_> {
+    /// Frame-free per-agent inputs for small policies (tests, benchmarks): `[B, N, 3]` =
+    /// (speed / 30 m/s, sin heading, cos heading) of the current state.
+    pub fn kinematic_features(&self) -> Tensor<3> {
+        let h = self.state.heading.clone();
+        Tensor::<2>::stack::<3>(
+            vec![
+                self.state.speed.clone().div_scalar(30.0),
+                h.clone().sin(),
+                h.cos(),
+            ],
+            2,
+        )
+    }
 }
 
 /// Anything that maps an observation to raw (unlimited) controls for every agent; entries for
@@ -183,204 +199,325 @@ pub fn rollout_from(
     config: &RolloutConfig,
     initial: Option<VehicleState>,
 ) -> Result<Rollout> {
-    let [b, n, t_total, _] = batch.agent_states.dims();
+    let agents = LoggedAgents::new(batch);
+    let [b, n, _] = agents.dims;
     if scenes.len() != b {
         return Err(Error::InvalidArgument(format!(
             "rollout got {} scenes for a batch of {b}",
             scenes.len()
         )));
     }
-    let device = batch.agent_states.device();
     let h = batch.history_steps;
     let steps = config.steps.unwrap_or(batch.future_steps);
     let maps: Vec<MapCache> = scenes.iter().map(|s| caches.get(&s.map)).collect();
 
-    let at = |t: usize| -> Tensor<3> {
-        batch
-            .agent_states
-            .clone()
-            .narrow(2, t.min(t_total - 1), 1)
-            .reshape([b, n, 5])
-    };
-    let feature = |s: &Tensor<3>, f: usize| s.clone().narrow(2, f, 1).reshape([b, n]);
-    let valid_at = |t: usize| -> Tensor<2, Bool> {
-        if t < t_total {
-            batch.agent_valid.clone().narrow(2, t, 1).reshape([b, n])
-        } else {
-            Tensor::<2>::zeros([b, n], &device).greater_elem(1.0)
-        }
-    };
-    let length = batch.agent_size.clone().narrow(2, 0, 1).reshape([b, n]);
-    let width = batch.agent_size.clone().narrow(2, 1, 1).reshape([b, n]);
-    // Padding agents have length 0: give them a harmless wheelbase so no NaN appears anywhere.
-    let wheelbase = length.clone().mul_scalar(WHEELBASE_RATIO).clamp_min(1.0);
-    let (length_v, width_v) = (to_f32(&length), to_f32(&width));
-    let controlled = to_bool(&batch.agent_controlled);
-    // Simulated through the dynamics: the policy's agents and the scripted heroes.
-    let driven: Vec<bool> = controlled
-        .iter()
-        .zip(to_bool(&batch.agent_hero))
-        .map(|(c, h)| *c || h)
-        .collect();
-    let log_valid: Vec<bool> = batch
-        .agent_valid
-        .to_data()
-        .try_into_vec_as::<bool>()
-        .unwrap_or_default();
-
-    let logged_state = |t: usize| {
-        let s = at(t);
-        VehicleState::from_centre(
-            feature(&s, 0),
-            feature(&s, 1),
-            feature(&s, 2),
-            feature(&s, 3),
-            &wheelbase,
-        )
-    };
-    let pose_of = |s: &VehicleState| -> Tensor<3> {
-        let (cx, cy) = s.centre(&wheelbase);
-        Tensor::stack(vec![cx, cy, s.heading.clone(), s.speed.clone()], 2)
-    };
-
     let mut frames = logged_frames(batch, h);
-
-    let zero_controls = Controls {
-        accel: Tensor::zeros([b, n], &device),
-        steer: Tensor::zeros([b, n], &device),
-    };
+    let zero_controls = agents.zero_controls();
     let start = match initial {
         Some(given) => {
             let controlled_t = batch.agent_controlled.clone();
-            logged_state(h).select(&controlled_t.bool_not(), given)
+            agents.state_at(h).select(&controlled_t.bool_not(), given)
         }
-        None => logged_state(h),
+        None => agents.state_at(h),
     };
     let mut state = dynamics.init_aux(start, &zero_controls);
-    let mut present = to_bool(&valid_at(h));
+    let mut present = agents.logged_present(h);
     // Driven agents still simulated.
-    let mut alive: Vec<bool> = present.iter().zip(&driven).map(|(p, c)| *p && *c).collect();
-
-    let mut poses = vec![pose_of(&state)];
-    let mut present_hist = vec![present.clone()];
-    // The policy's agents only: a scripted hero is driven, never the policy's.
-    let mut simulated_hist = vec![
-        alive
-            .iter()
-            .zip(&controlled)
-            .map(|(a, c)| *a && *c)
-            .collect::<Vec<bool>>(),
-    ];
-    let (mut collision_hist, mut offroad_hist) = (Vec::new(), Vec::new());
-    let mut struck_hist = Vec::new();
-    let mut actions = Vec::new();
-
-    let mut previous_centres = BoxCentres::of(&poses[0]);
+    let mut alive: Vec<bool> = (0..b * n).map(|i| present[i] && agents.driven[i]).collect();
+    let mut trace = Trace::start(agents.pose_of(&state), &present, &alive, &agents.controlled);
+    let mut previous_centres = BoxCentres::of(&trace.poses[0]);
     for k in 0..steps {
         let command = policy.act(&Observation {
             batch,
             step: k,
             frames: &frames,
             state: &state,
-            wheelbase: &wheelbase,
+            wheelbase: &agents.wheelbase,
         });
-        actions.push(command.stacked());
-        let stepped = dynamics.step(&state, &command, &wheelbase);
-        // Replayed agents (and anything not alive) follow the log where it has them; dead
-        // controlled agents stay frozen where they stopped.
+        trace.actions.push(command.stacked());
         let t_next = h + k + 1;
-        let replay: Vec<bool> = (0..b * n)
-            .map(|i| !driven[i] && t_next < t_total && log_valid[i * t_total + t_next])
-            .collect();
-        // Tensor selects only when some agent needs them (the common case has none).
-        let frozen = if replay.iter().any(|&r| r) {
-            let replay_t = bool_tensor(replay.clone(), [b, n], &device);
-            let log_next = dynamics.init_aux(logged_state(t_next), &zero_controls);
-            state.clone().select(&replay_t.bool_not(), log_next)
-        } else {
-            state.clone()
-        };
-        state = if alive.iter().all(|&a| a) {
-            stepped
-        } else {
-            stepped.select(&bool_tensor(alive.clone(), [b, n], &device), frozen)
-        };
+        let replay = agents.replayed_at(t_next);
+        state = agents.advance(dynamics, &state, &command, &alive, &replay, t_next);
 
-        let pose = pose_of(&state);
+        let pose = agents.pose_of(&state);
         // One read-back per step for the (non-differentiated) infraction checks.
         let centres = BoxCentres::of(&pose);
         let before = std::mem::replace(
             &mut present,
             (0..b * n).map(|i| alive[i] || replay[i]).collect(),
         );
-        let flags = check_step(
-            &centres.boxes(n, &length_v, &width_v, &present),
-            Some(&previous_centres.boxes(n, &length_v, &width_v, &before)),
+        let infractions = check_step(
+            &centres.boxes(n, &agents.length, &agents.width, &present),
+            Some(&previous_centres.boxes(n, &agents.length, &agents.width, &before)),
             &maps,
         );
         previous_centres = centres;
-        let mut collision = vec![false; b * n];
-        let mut offroad = vec![false; b * n];
-        let mut struck = vec![false; b * n];
-        for i in 0..b * n {
+        let flags = StepFlags::apply(
+            &infractions,
+            &agents.controlled,
+            config.early_termination,
+            &mut alive,
+            &mut present,
+        );
+        frames.push(Frame {
+            poses: pose.clone(),
+            present: bool_tensor(present.clone(), [b, n], &agents.device),
+        });
+        trace.record(pose, &present, &agents.controlled, flags);
+    }
+    Ok(trace.into_rollout(&agents, zero_controls, steps))
+}
+
+/// What a rollout reads from its batch once: sizes, wheelbases, and host copies of the masks.
+struct LoggedAgents<'a> {
+    batch: &'a SceneBatch,
+    /// B, N and the logged steps.
+    dims: [usize; 3],
+    device: Device,
+    /// `[B, N]` (m).
+    wheelbase: Tensor<2>,
+    /// Box lengths and widths, `[B * N]`.
+    length: Vec<f32>,
+    width: Vec<f32>,
+    /// Driven by the policy.
+    controlled: Vec<bool>,
+    /// Simulated through the dynamics: the policy's agents and the scripted heroes.
+    driven: Vec<bool>,
+    /// `[B * N * T]`: the log has the agent at that step.
+    log_valid: Vec<bool>,
+}
+
+impl<'a> LoggedAgents<'a> {
+    fn new(batch: &'a SceneBatch) -> Self {
+        let [b, n, t_total, _] = batch.agent_states.dims();
+        let length = batch.agent_size.clone().narrow(2, 0, 1).reshape([b, n]);
+        let width = batch.agent_size.clone().narrow(2, 1, 1).reshape([b, n]);
+        let controlled = to_bool(&batch.agent_controlled);
+        let driven = controlled
+            .iter()
+            .zip(to_bool(&batch.agent_hero))
+            .map(|(c, h)| *c || h)
+            .collect();
+        Self {
+            batch,
+            dims: [b, n, t_total],
+            device: batch.agent_states.device(),
+            // Padding agents have length 0: give them a harmless wheelbase so no NaN appears
+            // anywhere.
+            wheelbase: length.clone().mul_scalar(WHEELBASE_RATIO).clamp_min(1.0),
+            length: to_f32(&length),
+            width: to_f32(&width),
+            controlled,
+            driven,
+            log_valid: batch
+                .agent_valid
+                .to_data()
+                .try_into_vec_as::<bool>()
+                .unwrap_or_default(),
+        }
+    }
+
+    /// The logged state at step `t` (the last logged step beyond the log).
+    fn state_at(&self, t: usize) -> VehicleState {
+        let [b, n, t_total] = self.dims;
+        let s: Tensor<3> = self
+            .batch
+            .agent_states
+            .clone()
+            .narrow(2, t.min(t_total - 1), 1)
+            .reshape([b, n, 5]);
+        let feature = |f: usize| s.clone().narrow(2, f, 1).reshape([b, n]);
+        VehicleState::from_centre(
+            feature(0),
+            feature(1),
+            feature(2),
+            feature(3),
+            &self.wheelbase,
+        )
+    }
+
+    /// `[B * N]`: the log has the agent at step `t`.
+    fn logged_present(&self, t: usize) -> Vec<bool> {
+        let t_total = self.dims[2];
+        (0..self.length.len())
+            .map(|i| t < t_total && self.log_valid[i * t_total + t])
+            .collect()
+    }
+
+    /// `[B * N]`: agents that follow the log into step `t` (not driven, and logged then).
+    fn replayed_at(&self, t: usize) -> Vec<bool> {
+        let present = self.logged_present(t);
+        (0..present.len())
+            .map(|i| !self.driven[i] && present[i])
+            .collect()
+    }
+
+    /// The state at step `t`: driven agents still alive step through the dynamics; replayed
+    /// agents (and anything not alive) follow the log where it has them; dead driven agents
+    /// stay frozen where they stopped.
+    fn advance(
+        &self,
+        dynamics: &Dynamics,
+        state: &VehicleState,
+        command: &Controls,
+        alive: &[bool],
+        replay: &[bool],
+        t: usize,
+    ) -> VehicleState {
+        let [b, n, _] = self.dims;
+        let stepped = dynamics.step(state, command, &self.wheelbase);
+        // Tensor selects only when some agent needs them (the common case has none).
+        let frozen = if replay.iter().any(|&r| r) {
+            let replay_t = bool_tensor(replay.to_vec(), [b, n], &self.device);
+            let log_next = dynamics.init_aux(self.state_at(t), &self.zero_controls());
+            state.clone().select(&replay_t.bool_not(), log_next)
+        } else {
+            state.clone()
+        };
+        if alive.iter().all(|&a| a) {
+            stepped
+        } else {
+            stepped.select(&bool_tensor(alive.to_vec(), [b, n], &self.device), frozen)
+        }
+    }
+
+    /// `[B, N, 4]`: box centre x, y, heading, speed.
+    fn pose_of(&self, s: &VehicleState) -> Tensor<3> {
+        let (cx, cy) = s.centre(&self.wheelbase);
+        Tensor::stack(vec![cx, cy, s.heading.clone(), s.speed.clone()], 2)
+    }
+
+    fn zero_controls(&self) -> Controls {
+        let [b, n, _] = self.dims;
+        Controls {
+            accel: Tensor::zeros([b, n], &self.device),
+            steer: Tensor::zeros([b, n], &self.device),
+        }
+    }
+}
+
+/// One transition's infraction flags of the policy's agents, `[B * N]`.
+struct StepFlags {
+    collision: Vec<bool>,
+    offroad: Vec<bool>,
+    struck: Vec<bool>,
+}
+
+impl StepFlags {
+    /// Keeps the controlled agents' flags and updates who is simulated: an agent that left
+    /// the map is removed at once; with early termination, one with an infraction is present
+    /// at the infraction step and removed from the next one.
+    fn apply(
+        infractions: &StepInfractions,
+        controlled: &[bool],
+        early_termination: bool,
+        alive: &mut [bool],
+        present: &mut [bool],
+    ) -> Self {
+        let count = alive.len();
+        let mut flags = Self {
+            collision: vec![false; count],
+            offroad: vec![false; count],
+            struck: vec![false; count],
+        };
+        for i in 0..count {
             if !alive[i] {
                 continue;
             }
-            if flags.exited[i] {
+            if infractions.exited[i] {
                 alive[i] = false;
                 present[i] = false;
                 continue;
             }
-            collision[i] = flags.collision[i] && controlled[i];
-            offroad[i] = flags.offroad[i] && controlled[i];
-            struck[i] = flags.struck_from_behind[i] && controlled[i];
-            if config.early_termination && (flags.collision[i] || flags.offroad[i]) {
-                // Present at the infraction step, removed from the next one.
+            flags.collision[i] = infractions.collision[i] && controlled[i];
+            flags.offroad[i] = infractions.offroad[i] && controlled[i];
+            flags.struck[i] = infractions.struck_from_behind[i] && controlled[i];
+            if early_termination && (infractions.collision[i] || infractions.offroad[i]) {
                 alive[i] = false;
             }
         }
-        frames.push(Frame {
-            poses: pose.clone(),
-            present: bool_tensor(present.clone(), [b, n], &device),
-        });
-        poses.push(pose);
-        present_hist.push(present.clone());
-        simulated_hist.push((0..b * n).map(|i| controlled[i] && present[i]).collect());
-        collision_hist.push(collision);
-        offroad_hist.push(offroad);
-        struck_hist.push(struck);
+        flags
     }
-    if let Some(last) = actions.last().cloned() {
-        actions.push(last);
-    } else {
-        actions.push(zero_controls.stacked());
+}
+
+/// A rollout's per-step records, stacked over time at the end.
+struct Trace {
+    poses: Vec<Tensor<3>>,
+    present: Vec<Vec<bool>>,
+    simulated: Vec<Vec<bool>>,
+    collision: Vec<Vec<bool>>,
+    offroad: Vec<Vec<bool>>,
+    struck: Vec<Vec<bool>>,
+    actions: Vec<Tensor<3>>,
+}
+
+impl Trace {
+    fn start(pose: Tensor<3>, present: &[bool], alive: &[bool], controlled: &[bool]) -> Self {
+        Self {
+            poses: vec![pose],
+            present: vec![present.to_vec()],
+            // The policy's agents only: a scripted hero is driven, never the policy's.
+            simulated: vec![
+                alive
+                    .iter()
+                    .zip(controlled)
+                    .map(|(a, c)| *a && *c)
+                    .collect(),
+            ],
+            collision: Vec::new(),
+            offroad: Vec::new(),
+            struck: Vec::new(),
+            actions: Vec::new(),
+        }
     }
 
-    let stack_time = |v: Vec<Vec<bool>>| -> Tensor<3, Bool> {
-        let t = v.len();
-        let mut data = vec![false; b * n * t];
-        for (k, row) in v.iter().enumerate() {
-            for i in 0..b * n {
-                data[i * t + k] = row[i];
+    fn record(&mut self, pose: Tensor<3>, present: &[bool], controlled: &[bool], f: StepFlags) {
+        self.poses.push(pose);
+        self.present.push(present.to_vec());
+        self.simulated.push(
+            present
+                .iter()
+                .zip(controlled)
+                .map(|(p, c)| *p && *c)
+                .collect(),
+        );
+        self.collision.push(f.collision);
+        self.offroad.push(f.offroad);
+        self.struck.push(f.struck);
+    }
+
+    fn into_rollout(mut self, agents: &LoggedAgents, zero: Controls, steps: usize) -> Rollout {
+        let [b, n, _] = agents.dims;
+        let device = &agents.device;
+        let last_action = self.actions.last().cloned();
+        self.actions
+            .push(last_action.unwrap_or_else(|| zero.stacked()));
+        let stack_time = |v: Vec<Vec<bool>>| -> Tensor<3, Bool> {
+            let t = v.len();
+            let mut data = vec![false; b * n * t];
+            for (k, row) in v.iter().enumerate() {
+                for i in 0..b * n {
+                    data[i * t + k] = row[i];
+                }
             }
+            bool_tensor(data, [b, n, t], device)
+        };
+        let collision = stack_time(self.collision);
+        let offroad = stack_time(self.offroad);
+        let rewards = Tensor::<3>::zeros(collision.dims(), device)
+            .mask_fill(collision.clone().bool_or(offroad.clone()), -1.0);
+        Rollout {
+            poses: Tensor::stack(self.poses, 2),
+            present: stack_time(self.present),
+            simulated: stack_time(self.simulated),
+            collision,
+            offroad,
+            struck_from_behind: stack_time(self.struck),
+            rewards,
+            actions: Tensor::stack(self.actions, 2),
+            steps,
         }
-        bool_tensor(data, [b, n, t], &device)
-    };
-    let collision = stack_time(collision_hist);
-    let offroad = stack_time(offroad_hist);
-    let rewards = Tensor::<3>::zeros(collision.dims(), &device)
-        .mask_fill(collision.clone().bool_or(offroad.clone()), -1.0);
-    Ok(Rollout {
-        poses: Tensor::stack(poses, 2),
-        present: stack_time(present_hist),
-        simulated: stack_time(simulated_hist),
-        collision,
-        offroad,
-        struck_from_behind: stack_time(struck_hist),
-        rewards,
-        actions: Tensor::stack(actions, 2),
-        steps,
-    })
+    }
 }
 
 /// Host copies of one step's box centres and headings, `[B * N]` row-major (the infraction

@@ -1,17 +1,19 @@
 //! The identification pipeline: baseline, nominal refit, one fit per catalogue effect,
 //! selection on held-out tracks with a parsimony rule, pairs when one effect is not enough.
 
+use burn::prelude::Device;
 use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
+use super::discover::Discovery;
 use super::discover::discover;
 use super::fit::{Fit, FitOptions, evaluate, fit, standard_errors};
-use super::locate::{ChannelRms, Mismatch, locate};
+use super::locate::{ChannelRms, locate};
 use super::noise::NoiseLevels;
-use super::report::{Comparison, DiscoveredCandidate, Report};
-use super::simulate::{Candidate, StepError, batches};
+use super::report::{Comparison, Diagnosis, Report};
+use super::simulate::{Candidate, StepError, WindowBatch, batches};
 use super::unexplained::{RegimeExcess, Unexplained, regime_excess};
 use super::windows::{Starts, Window, windows};
 use crate::backend::Backend;
@@ -80,6 +82,7 @@ pub struct Outcome {
 }
 
 /// Held-out errors of one model.
+#[derive(Debug, Clone)]
 pub struct Evaluated {
     pub fit: Fit,
     pub errors: Vec<Vec<StepError>>,
@@ -238,38 +241,152 @@ pub fn identify(
     options: &Sim2RealOptions,
     progress: &(dyn Fn(&str) + Sync),
 ) -> Result<Outcome> {
-    let plain = Backend::NdArray.device(false)?;
-    let autodiff = Backend::NdArray.device(true)?;
     let recordings = &at_most_100_hz(recordings);
     let split = split(recordings, options)?;
-    let (train_b, held_b, short_b) = (
-        batches(&split.train, &plain),
-        batches(&split.heldout, &plain),
-        batches(&split.short, &plain),
+    let fitter = Fitter::new(&split, options)?;
+    let selection = select(&fitter, recordings, progress);
+
+    progress("locating the mismatch");
+    let short_errors = |f: &Fit| evaluate(f, &fitter.short, split.short.len(), &fitter.plain);
+    let baseline_short = short_errors(&selection.baseline.fit);
+    let final_short = short_errors(&selection.final_model.fit);
+    let period = split.heldout[0].period;
+    let mismatch_of = |e: &Evaluated, short: &[Vec<StepError>]| {
+        locate(recordings, &e.errors, period, &split.short, short)
+    };
+    let noise = NoiseLevels::estimate(&[split.train.as_slice(), &split.heldout].concat());
+    let excess_before = regime_excess(recordings, &noise, &split.short, &baseline_short);
+    let excess_after = regime_excess(recordings, &noise, &split.short, &final_short);
+    let diagnosis = Diagnosis {
+        before: mismatch_of(&selection.baseline, &baseline_short),
+        after: mismatch_of(&selection.final_model, &final_short),
+        unexplained: Unexplained::assess(
+            recordings,
+            noise,
+            &split.heldout,
+            &selection.final_model.errors,
+            &split.short,
+            &final_short,
+        ),
+    };
+    let report = Report::new(
+        recordings,
+        options,
+        [&split.train, &split.heldout],
+        &selection,
+        diagnosis,
     );
-    let heldout_errors = |f: &Fit| evaluate(f, &held_b, split.heldout.len(), &plain);
+    Ok(Outcome {
+        report,
+        heldout: split.heldout,
+        baseline: selection.baseline,
+        final_model: selection.final_model,
+        excess_before,
+        excess_after,
+    })
+}
+
+/// Fits candidates on the training windows and scores them on the held-out ones.
+struct Fitter<'a> {
+    split: &'a Split,
+    options: &'a Sim2RealOptions,
+    train: Vec<WindowBatch>,
+    heldout: Vec<WindowBatch>,
+    short: Vec<WindowBatch>,
+    plain: Device,
+    autodiff: Device,
+}
+
+impl<'a> Fitter<'a> {
+    fn new(split: &'a Split, options: &'a Sim2RealOptions) -> Result<Self> {
+        let plain = Backend::NdArray.device(false)?;
+        Ok(Self {
+            split,
+            options,
+            train: batches(&split.train, &plain),
+            heldout: batches(&split.heldout, &plain),
+            short: batches(&split.short, &plain),
+            autodiff: Backend::NdArray.device(true)?,
+            plain,
+        })
+    }
+
+    /// The held-out errors of a fitted (or unfitted) model.
+    fn score(&self, fit: Fit) -> Evaluated {
+        let errors = evaluate(&fit, &self.heldout, self.split.heldout.len(), &self.plain);
+        Evaluated { fit, errors }
+    }
+
+    /// Fits `candidate` by gradient descent and scores it.
+    fn fit(&self, candidate: &Candidate) -> Evaluated {
+        self.score(fit(
+            candidate,
+            &self.train,
+            &self.autodiff,
+            &self.options.fit,
+        ))
+    }
+
+    /// [`Self::fit`] with the standard errors of its parameters, for the report.
+    fn fit_with_errors(&self, candidate: &Candidate) -> Evaluated {
+        let mut out = self.fit(candidate);
+        self.add_standard_errors(&mut out);
+        out
+    }
+
+    fn add_standard_errors(&self, evaluated: &mut Evaluated) {
+        standard_errors(
+            &mut evaluated.fit,
+            &self.train,
+            &self.split.train,
+            &self.plain,
+        );
+    }
+
+    /// Paired held-out comparison of `new` against `reference` under the parsimony rule.
+    fn compare(&self, new: &Evaluated, reference: &Evaluated) -> Comparison {
+        Comparison::paired(
+            &self.split.heldout,
+            &reference.errors,
+            &new.errors,
+            self.options,
+        )
+    }
+}
+
+/// The models that model selection fitted and what it chose.
+pub struct Selection {
+    /// The nominal bicycle with the declared wheelbase.
+    pub baseline: Evaluated,
+    /// The nominal bicycle with the wheelbase fitted.
+    pub refit: Evaluated,
+    /// The catalogue effects tried (those identifiable from these recordings).
+    pub tried: Vec<Effect>,
+    /// One fit per tried effect, in `tried` order.
+    pub singles: Vec<Evaluated>,
+    /// Indices into `singles`, best held-out error first, each against the reference.
+    pub ranked: Vec<(usize, Comparison)>,
+    /// The sparse regression's equations, and their fit when they were allowed to compete.
+    pub discovery: Discovery,
+    pub discovered: Option<(Evaluated, Comparison)>,
+    /// The findings in the order they were kept, each against the model before it.
+    pub chosen: Vec<(Evaluated, Comparison)>,
+    /// The last finding, or the reference nominal model when nothing was kept.
+    pub final_model: Evaluated,
+}
+
+/// Baseline, nominal refit, one fit per catalogue effect, the discovered equation, and the
+/// findings kept under the parsimony rule.
+fn select(fitter: &Fitter, recordings: &Recordings, progress: &(dyn Fn(&str) + Sync)) -> Selection {
+    let options = fitter.options;
     let nominal = |fit_wheelbase| Candidate {
         fit_wheelbase,
         ..Candidate::with_effects(Vec::new())
     };
-    let fit_one = |candidate: &Candidate| -> Evaluated {
-        let fitted = fit(candidate, &train_b, &autodiff, &options.fit);
-        let errors = heldout_errors(&fitted);
-        Evaluated {
-            fit: fitted,
-            errors,
-        }
-    };
-
     progress("baseline: nominal bicycle, declared wheelbase");
-    let baseline_fit = Fit::unfitted(nominal(false));
-    let baseline = Evaluated {
-        errors: heldout_errors(&baseline_fit),
-        fit: baseline_fit,
-    };
+    let baseline = fitter.score(Fit::unfitted(nominal(false)));
     progress("nominal refit: wheelbase by gradient descent");
-    let mut refit = fit_one(&nominal(true));
-    standard_errors(&mut refit.fit, &train_b, &split.train, &plain);
+    let refit = fitter.fit_with_errors(&nominal(true));
     // Every finding must beat the better of the declared and the refitted nominal model, so
     // none makes held-out error worse than the declared model's (a refit can lose to it when
     // gradient descent is cut short, e.g. `--iterations 1`).
@@ -290,168 +407,120 @@ pub fn identify(
     let singles: Vec<Evaluated> = tried
         .par_iter()
         .map(|&e| {
-            let mut out = fit_one(&Candidate::with_effects(vec![e]));
-            standard_errors(&mut out.fit, &train_b, &split.train, &plain);
+            let out = fitter.fit_with_errors(&Candidate::with_effects(vec![e]));
             progress(&format!("  fitted {e}"));
             out
         })
         .collect();
-    let compare = |new: &Evaluated, reference: &Evaluated| {
-        Comparison::paired(&split.heldout, &reference.errors, &new.errors, options)
-    };
     let mut ranked: Vec<(usize, Comparison)> = singles
         .iter()
         .enumerate()
-        .map(|(k, s)| (k, compare(s, reference)))
+        .map(|(k, s)| (k, fitter.compare(s, reference)))
         .collect();
     ranked.sort_by(|a, b| a.1.rmse_after_m.total_cmp(&b.1.rmse_after_m));
 
     progress("discovery: sparse regression of the derivative residuals on the library");
     let discovery = discover(
         recordings,
-        &split.train_tracks,
-        &split.heldout_tracks,
+        &fitter.split.train_tracks,
+        &fitter.split.heldout_tracks,
         options.default_wheelbase_m,
         refit.fit.values[0],
         options.commands_inferred,
     );
     let discovered = (options.discover && !discovery.terms().is_empty()).then(|| {
-        let mut out = fit_one(&Candidate {
+        let out = fitter.fit_with_errors(&Candidate {
             discovered: discovery.terms(),
             wheelbase_start: discovery.wheelbase_scale,
             ..Candidate::with_effects(Vec::new())
         });
-        standard_errors(&mut out.fit, &train_b, &split.train, &plain);
-        let comparison = compare(&out, reference);
+        let comparison = fitter.compare(&out, reference);
         (out, comparison)
     });
 
-    // The first finding: the best significant catalogue effect, unless a discovered equation
-    // beats it by the same parsimony rule (named hypotheses win ties).
+    let chosen = choose(fitter, &singles, &ranked, &discovery, &discovered, progress);
+    let final_model = match chosen.last() {
+        Some((e, _)) => e.clone(),
+        None => reference.clone(),
+    };
+    Selection {
+        baseline,
+        refit,
+        tried,
+        singles,
+        ranked,
+        discovery,
+        discovered,
+        chosen,
+        final_model,
+    }
+}
+
+/// The findings to keep: the best significant catalogue effect, unless a discovered equation
+/// beats it by the same parsimony rule (named hypotheses win ties); then the best significant
+/// pair of it with a runner-up effect or with the discovered terms.
+fn choose(
+    fitter: &Fitter,
+    singles: &[Evaluated],
+    ranked: &[(usize, Comparison)],
+    discovery: &Discovery,
+    discovered: &Option<(Evaluated, Comparison)>,
+    progress: &(dyn Fn(&str) + Sync),
+) -> Vec<(Evaluated, Comparison)> {
     let best_single = ranked
         .first()
         .filter(|(_, c)| c.significant)
         .map(|(k, c)| (&singles[*k], c.clone()));
-    let first = match (best_single, &discovered) {
-        (Some((single, c)), Some((found, _))) if !compare(found, single).significant => {
+    let first = match (best_single, discovered) {
+        (Some((single, c)), Some((found, _))) if !fitter.compare(found, single).significant => {
             Some((single, c))
         }
         (_, Some((found, c))) if c.significant => Some((found, c.clone())),
         (Some((single, c)), _) => Some((single, c)),
         _ => None,
     };
-    let mut chosen: Vec<(Evaluated, Comparison)> = Vec::new();
-    if let Some((first, comparison)) = first {
-        let first = Evaluated {
-            fit: first.fit.clone(),
-            errors: first.errors.clone(),
-        };
-        let base = first.fit.candidate.clone();
-        // Pairs: the first with each runner-up effect that helped on its own, and with the
-        // discovered terms.
-        let mut partners: Vec<Candidate> = ranked
-            .iter()
-            .filter(|(_, c)| c.significant)
-            .map(|(k, _)| singles[*k].fit.candidate.effects[0])
-            .filter(|e| !base.effects.contains(e))
-            .take(2)
-            .map(|e| Candidate {
-                effects: [base.effects.clone(), vec![e]].concat(),
-                ..base.clone()
-            })
-            .collect();
-        if base.discovered.is_empty() && discovered.is_some() {
-            partners.push(Candidate {
-                discovered: discovery.terms(),
-                wheelbase_start: first.fit.values[0],
-                ..base.clone()
-            });
-        }
-        if !partners.is_empty() {
-            progress(&format!("{} helps; trying it in pairs", base.label()));
-        }
-        let pairs: Vec<Evaluated> = partners.par_iter().map(fit_one).collect();
-        let best_pair = pairs
-            .into_iter()
-            .map(|p| {
-                let c = compare(&p, &first);
-                (p, c)
-            })
-            .filter(|(_, c)| c.significant)
-            .min_by(|a, b| a.1.rmse_after_m.total_cmp(&b.1.rmse_after_m));
-        chosen.push((first, comparison));
-        if let Some((mut pair, c)) = best_pair {
-            standard_errors(&mut pair.fit, &train_b, &split.train, &plain);
-            chosen.push((pair, c));
-        }
-    }
-
-    progress("locating the mismatch");
-    let short_errors = |f: &Fit| evaluate(f, &short_b, split.short.len(), &plain);
-    let period = split.heldout[0].period;
-    let baseline_short = short_errors(&baseline.fit);
-    let before: Mismatch = locate(
-        recordings,
-        &baseline.errors,
-        period,
-        &split.short,
-        &baseline_short,
-    );
-    let final_model = match chosen.last() {
-        Some((e, _)) => Evaluated {
-            fit: e.fit.clone(),
-            errors: e.errors.clone(),
-        },
-        None => Evaluated {
-            fit: reference.fit.clone(),
-            errors: reference.errors.clone(),
-        },
+    let Some((first, comparison)) = first else {
+        return Vec::new();
     };
-    let final_short = short_errors(&final_model.fit);
-    let after = locate(
-        recordings,
-        &final_model.errors,
-        period,
-        &split.short,
-        &final_short,
-    );
-    let noise = NoiseLevels::estimate(&[split.train.as_slice(), &split.heldout].concat());
-    let excess_before = regime_excess(recordings, &noise, &split.short, &baseline_short);
-    let excess_after = regime_excess(recordings, &noise, &split.short, &final_short);
-    let unexplained = Unexplained::assess(
-        recordings,
-        noise,
-        &split.heldout,
-        &final_model.errors,
-        &split.short,
-        &final_short,
-    );
-    let report = Report::new(
-        recordings,
-        options,
-        &split.train,
-        &split.heldout,
-        &baseline,
-        &refit,
-        &singles,
-        &ranked,
-        &chosen,
-        &final_model,
-        tried,
-        before,
-        after,
-        unexplained,
-        discovery,
-        discovered
-            .as_ref()
-            .map(|(e, c)| DiscoveredCandidate::new(e, c)),
-    );
-    Ok(Outcome {
-        report,
-        heldout: split.heldout,
-        baseline,
-        final_model,
-        excess_before,
-        excess_after,
-    })
+    let base = first.fit.candidate.clone();
+    // Pairs: the first with each runner-up effect that helped on its own, and with the
+    // discovered terms.
+    let mut partners: Vec<Candidate> = ranked
+        .iter()
+        .filter(|(_, c)| c.significant)
+        .map(|(k, _)| singles[*k].fit.candidate.effects[0])
+        .filter(|e| !base.effects.contains(e))
+        .take(2)
+        .map(|e| Candidate {
+            effects: [base.effects.clone(), vec![e]].concat(),
+            ..base.clone()
+        })
+        .collect();
+    if base.discovered.is_empty() && discovered.is_some() {
+        partners.push(Candidate {
+            discovered: discovery.terms(),
+            wheelbase_start: first.fit.values[0],
+            ..base.clone()
+        });
+    }
+    if !partners.is_empty() {
+        progress(&format!("{} helps; trying it in pairs", base.label()));
+    }
+    let best_pair = partners
+        .par_iter()
+        .map(|c| fitter.fit(c))
+        .collect::<Vec<_>>()
+        .into_iter()
+        .map(|p| {
+            let c = fitter.compare(&p, first);
+            (p, c)
+        })
+        .filter(|(_, c)| c.significant)
+        .min_by(|a, b| a.1.rmse_after_m.total_cmp(&b.1.rmse_after_m));
+    let mut chosen = vec![(first.clone(), comparison)];
+    if let Some((mut pair, c)) = best_pair {
+        fitter.add_standard_errors(&mut pair);
+        chosen.push((pair, c));
+    }
+    chosen
 }

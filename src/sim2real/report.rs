@@ -6,7 +6,7 @@ use serde::Serialize;
 
 use super::discover::Discovery;
 use super::fit::Fit;
-use super::identify::{Evaluated, Sim2RealOptions};
+use super::identify::{Evaluated, Selection, Sim2RealOptions};
 use super::locate::{ChannelRms, Mismatch};
 use super::simulate::StepError;
 use super::unexplained::Unexplained;
@@ -294,101 +294,24 @@ impl DiscoveredCandidate {
     }
 }
 
+/// Where the mismatch is before and after the chosen model, and what is left unexplained.
+pub struct Diagnosis {
+    pub before: Mismatch,
+    pub after: Mismatch,
+    pub unexplained: Unexplained,
+}
+
 impl Report {
-    #[allow(clippy::too_many_arguments)]
+    /// `windows` are the training and held-out windows.
     pub fn new(
         recordings: &Recordings,
         options: &Sim2RealOptions,
-        train: &[Window],
-        heldout: &[Window],
-        baseline: &Evaluated,
-        refit: &Evaluated,
-        singles: &[Evaluated],
-        ranked: &[(usize, Comparison)],
-        chosen: &[(Evaluated, Comparison)],
-        final_model: &Evaluated,
-        tried: Vec<Effect>,
-        before: Mismatch,
-        after: Mismatch,
-        unexplained: Unexplained,
-        discovery: Discovery,
-        discovered_candidate: Option<DiscoveredCandidate>,
+        [train, heldout]: [&[Window]; 2],
+        selection: &Selection,
+        diagnosis: Diagnosis,
     ) -> Self {
-        let baseline_rmse = rmse(&baseline.errors);
-        let candidates = ranked
-            .iter()
-            .map(|(k, c)| {
-                let (_, effects) = estimates(&singles[*k].fit);
-                let (effect, params) = effects.into_iter().next().expect("one effect");
-                CandidateResult {
-                    effect,
-                    params,
-                    heldout_pos_rmse_m: c.rmse_after_m,
-                    improvement_pct: c.improvement_pct,
-                    t_stat: c.t_stat,
-                    significant: c.significant,
-                }
-            })
-            .collect();
-        let mut previous: Option<&Fit> = None;
-        let findings = chosen
-            .iter()
-            .map(|(e, c)| {
-                let added_discovered = !e.fit.candidate.discovered.is_empty()
-                    && previous.is_none_or(|p| p.candidate.discovered.is_empty());
-                previous = Some(&e.fit);
-                if added_discovered {
-                    let terms = discovered_estimates(&e.fit);
-                    let meanings: Vec<&str> = terms.iter().map(|t| t.meaning.as_str()).collect();
-                    Finding {
-                        effect: None,
-                        name: "discovered".into(),
-                        description: meanings.join("; "),
-                        equation: Some(equation_text(&terms)),
-                        discovered: terms,
-                        params: BTreeMap::new(),
-                        params_std_error: BTreeMap::new(),
-                        heldout_pos_rmse_m: c.rmse_after_m,
-                        improvement_pct: c.improvement_pct,
-                        t_stat: c.t_stat,
-                    }
-                } else {
-                    let (_, effects) = estimates(&e.fit);
-                    let (effect, params) = effects.last().cloned().expect("an effect");
-                    Finding {
-                        effect: Some(effect),
-                        name: effect.name().into(),
-                        description: effect.description().into(),
-                        equation: None,
-                        discovered: Vec::new(),
-                        params: params.iter().map(|(k, v)| (k.clone(), v.value)).collect(),
-                        params_std_error: params
-                            .iter()
-                            .map(|(k, v)| (k.clone(), v.std_error))
-                            .collect(),
-                        heldout_pos_rmse_m: c.rmse_after_m,
-                        improvement_pct: c.improvement_pct,
-                        t_stat: c.t_stat,
-                    }
-                }
-            })
-            .collect();
-        let not_identifiable = Effect::ALL
-            .into_iter()
-            .filter(|e| !tried.contains(e))
-            .map(|e| {
-                let why = if options.commands_inferred && e.acts_on_commands() {
-                    "the commands were inferred from the motion, so whatever the actuators did \
-                     is already in them: this needs recorded commands"
-                } else {
-                    "not among the candidates requested"
-                };
-                (e, why.to_string())
-            })
-            .collect();
-        let final_rmse = rmse(&final_model.errors);
-        let (final_wheelbase, final_effects) = estimates(&final_model.fit);
-        let (refit_wheelbase, _) = estimates(&refit.fit);
+        let baseline_rmse = rmse(&selection.baseline.errors);
+        let (refit_wheelbase, _) = estimates(&selection.refit.fit);
         Self {
             source: recordings.source.clone(),
             tracks: recordings.tracks.len(),
@@ -410,31 +333,20 @@ impl Report {
                 wheelbase: "declared",
             },
             nominal_refit: NominalRefit {
-                heldout_pos_rmse_m: rmse(&refit.errors),
+                heldout_pos_rmse_m: rmse(&selection.refit.errors),
                 wheelbase_scale: refit_wheelbase,
             },
-            mismatch: before,
-            candidates,
-            findings,
-            not_identifiable,
-            final_model: Final {
-                model: final_model.fit.candidate.label(),
-                heldout_pos_rmse_m: final_rmse,
-                wheelbase_scale: final_wheelbase,
-                terms: final_effects
-                    .into_iter()
-                    .map(|(effect, params)| FittedTerm {
-                        effect,
-                        params: params.into_iter().map(|(k, v)| (k, v.value)).collect(),
-                    })
-                    .collect(),
-                discovered: discovered_estimates(&final_model.fit),
-                improvement_vs_baseline_pct: 100.0 * (1.0 - final_rmse / baseline_rmse.max(1e-12)),
-                mismatch: after,
-            },
-            unexplained,
-            discovery,
-            discovered_candidate,
+            mismatch: diagnosis.before,
+            candidates: candidate_results(selection),
+            findings: findings(&selection.chosen),
+            not_identifiable: not_identifiable(&selection.tried, options),
+            final_model: Final::new(&selection.final_model, baseline_rmse, diagnosis.after),
+            unexplained: diagnosis.unexplained,
+            discovery: selection.discovery.clone(),
+            discovered_candidate: selection
+                .discovered
+                .as_ref()
+                .map(|(e, c)| DiscoveredCandidate::new(e, c)),
         }
     }
 
@@ -554,5 +466,123 @@ impl Report {
         ));
         lines.extend(self.unexplained.summary());
         lines
+    }
+}
+
+/// Every tried catalogue effect with its estimates, best held-out error first.
+fn candidate_results(selection: &Selection) -> Vec<CandidateResult> {
+    selection
+        .ranked
+        .iter()
+        .map(|(k, c)| {
+            let (_, effects) = estimates(&selection.singles[*k].fit);
+            let (effect, params) = effects.into_iter().next().expect("one effect");
+            CandidateResult {
+                effect,
+                params,
+                heldout_pos_rmse_m: c.rmse_after_m,
+                improvement_pct: c.improvement_pct,
+                t_stat: c.t_stat,
+                significant: c.significant,
+            }
+        })
+        .collect()
+}
+
+/// One finding per kept model: what it added to the model before it.
+fn findings(chosen: &[(Evaluated, Comparison)]) -> Vec<Finding> {
+    let mut previous: Option<&Fit> = None;
+    chosen
+        .iter()
+        .map(|(e, c)| {
+            let added_discovered = !e.fit.candidate.discovered.is_empty()
+                && previous.is_none_or(|p| p.candidate.discovered.is_empty());
+            previous = Some(&e.fit);
+            if added_discovered {
+                Finding::discovered(&e.fit, c)
+            } else {
+                Finding::catalogue(&e.fit, c)
+            }
+        })
+        .collect()
+}
+
+/// The catalogue effects not tried, and why.
+fn not_identifiable(tried: &[Effect], options: &Sim2RealOptions) -> Vec<(Effect, String)> {
+    Effect::ALL
+        .into_iter()
+        .filter(|e| !tried.contains(e))
+        .map(|e| {
+            let why = if options.commands_inferred && e.acts_on_commands() {
+                "the commands were inferred from the motion, so whatever the actuators did \
+                 is already in them: this needs recorded commands"
+            } else {
+                "not among the candidates requested"
+            };
+            (e, why.to_string())
+        })
+        .collect()
+}
+
+impl Finding {
+    /// The discovered terms that `fit` added.
+    fn discovered(fit: &Fit, c: &Comparison) -> Self {
+        let terms = discovered_estimates(fit);
+        let meanings: Vec<&str> = terms.iter().map(|t| t.meaning.as_str()).collect();
+        Self {
+            effect: None,
+            name: "discovered".into(),
+            description: meanings.join("; "),
+            equation: Some(equation_text(&terms)),
+            discovered: terms,
+            params: BTreeMap::new(),
+            params_std_error: BTreeMap::new(),
+            heldout_pos_rmse_m: c.rmse_after_m,
+            improvement_pct: c.improvement_pct,
+            t_stat: c.t_stat,
+        }
+    }
+
+    /// The catalogue effect that `fit` added (its last).
+    fn catalogue(fit: &Fit, c: &Comparison) -> Self {
+        let (_, effects) = estimates(fit);
+        let (effect, params) = effects.last().cloned().expect("an effect");
+        Self {
+            effect: Some(effect),
+            name: effect.name().into(),
+            description: effect.description().into(),
+            equation: None,
+            discovered: Vec::new(),
+            params: params.iter().map(|(k, v)| (k.clone(), v.value)).collect(),
+            params_std_error: params
+                .iter()
+                .map(|(k, v)| (k.clone(), v.std_error))
+                .collect(),
+            heldout_pos_rmse_m: c.rmse_after_m,
+            improvement_pct: c.improvement_pct,
+            t_stat: c.t_stat,
+        }
+    }
+}
+
+impl Final {
+    fn new(final_model: &Evaluated, baseline_rmse: f64, mismatch: Mismatch) -> Self {
+        let final_rmse = rmse(&final_model.errors);
+        let (wheelbase_scale, effects) = estimates(&final_model.fit);
+        Self {
+            model: final_model.fit.candidate.label(),
+            heldout_pos_rmse_m: final_rmse,
+            wheelbase_scale,
+            terms: effects
+                .into_iter()
+                .map(|(effect, params)| FittedTerm {
+                    effect,
+                    params: params.into_iter().map(|(k, v)| (k, v.value)).collect(),
+                })
+                .collect(),
+            discovered: discovered_estimates(&final_model.fit),
+            improvement_vs_baseline_pct: 100.0 * (1.0 - final_rmse / baseline_rmse.max(1e-12)),
+            mismatch,
+        }
     }
 }

@@ -13,8 +13,8 @@
 //! the logs; on generated roads the agents around are the policy's own, drifting together.
 //! Removing neighbours leaves the lane graph as the cue that still predicts the logged path.
 //! Dropping inputs so that a network cannot lean on one cue is common practice (dropout; "agent
-//! dropout" in multi-agent prediction). Measured at 0.8 (`experiments/recipe/agent_dropout/`):
-//! lone cars keep their lane on the A9, and IL's nominal off-road rate halves.
+//! dropout" in multi-agent prediction); its effect on lane keeping is measured in
+//! `experiments/recipe/agent_dropout/`.
 
 use rand::Rng;
 

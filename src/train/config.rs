@@ -228,9 +228,9 @@ pub struct PpoConfig {
     /// Not in the paper: a collision costs only the agents at fault. An agent struck from
     /// behind ([`crate::sim::infractions::StepInfractions::struck_from_behind`], nuPlan's rule)
     /// gets no penalty, and its episode, ended by the other's mistake, is a truncation
-    /// bootstrapped with its last value. Measured (`experiments/recipe/ppo_credit/`), it takes
-    /// away the paper's push on a car closed on from behind to pull away and adds a general
-    /// slowing: slowing down is free when the car behind takes the blame. `false` (the paper):
+    /// bootstrapped with its last value. It takes away the paper's push on a car closed on from
+    /// behind to pull away and invites a general slowing: slowing down is free when the car
+    /// behind takes the blame (`experiments/recipe/ppo_credit/`). `false` (the paper):
     /// both cars of a collision get -1.
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub at_fault_collisions: bool,

@@ -259,9 +259,8 @@ impl<'n> Recorder<'n> {
     /// Its mean under pi is KL(pi || pi_ref), and unlike the exact KL of each step it depends
     /// on the action taken, so PPO's score-function gradient carries the KL's own gradient
     /// (the per-token penalty of RLHF, e.g. InstructGPT). With the exact KL in the reward
-    /// nothing pulled the policy back to the reference: the KL grew to ~16 per step within 108
-    /// iterations and, since an infraction ends an agent's episode, leaving the road (-1 once)
-    /// became the cheapest way out of it (training off-road 36 -> 83 %).
+    /// nothing pulls the policy back to the reference: the KL grows, and since an infraction
+    /// ends an agent's episode, leaving the road (-1 once) becomes the cheapest way out of it.
     fn sampled_log_ratios(&self) -> Vec<Tensor<2>> {
         self.log_probs
             .iter()
@@ -426,125 +425,9 @@ pub fn collect(
     let final_agents = AgentInput::from_frames(&batch, &frames, nets.policy.config());
     recorder.values.push(recorder.value_of(&final_agents));
 
+    let signals = Signals::read(&out, &recorder, part, ppo, rewards);
     let [b, n, _, _] = out.poses.dims();
-    let agents = b * n;
-    let simulated = host_bool(out.simulated.clone());
-    let infraction = host_bool(out.collision.clone().bool_or(out.offroad.clone()));
-    let collision = host_bool(out.collision.clone());
-    let offroad = host_bool(out.offroad.clone());
-    let waived = waived_collisions(
-        &host_bool(out.struck_from_behind.clone()),
-        &offroad,
-        ppo.at_fault_collisions,
-    );
-    let base_reward = host_f32(out.rewards.clone());
-    // Row-major [B*N][T(+1)] host copies of the per-step tensors.
-    let per_step = |v: &[Tensor<2>]| -> Vec<f32> {
-        let t = v.len();
-        let cols: Vec<Vec<f32>> = v.iter().map(|x| host_f32(x.clone())).collect();
-        let mut out = vec![0.0; agents * t];
-        for (k, col) in cols.iter().enumerate() {
-            for i in 0..agents {
-                out[i * t + k] = col[i];
-            }
-        }
-        out
-    };
-    let values = per_step(&recorder.values);
-
-    // A waived collision still ends the episode (the car is gone), as a truncation.
-    let mut reward: Vec<f64> = base_reward
-        .iter()
-        .zip(&waived)
-        .map(|(&r, &w)| if w { 0.0 } else { r as f64 })
-        .collect();
-    let mut ends = infraction.clone();
-    if let Some(shaping) = &rewards.shaping {
-        let speeds = host_f32(out.poses.clone().narrow(3, 3, 1).reshape([b, n, steps + 1]));
-        let centres = host_f32(
-            out.poses
-                .clone()
-                .narrow(3, 0, 3)
-                .reshape([b, n, steps + 1, 3]),
-        );
-        let terms = speed_shaping(&part.scenes, n, steps, &speeds, &centres, shaping);
-        for (k, (bonus, end)) in terms.iter().enumerate() {
-            reward[k] += bonus;
-            ends[k] |= end;
-        }
-    }
-    if let (Some(weight), false) = (rewards.kl_weight, recorder.reference.is_empty()) {
-        for (r, k) in reward
-            .iter_mut()
-            .zip(per_step(&recorder.sampled_log_ratios()))
-        {
-            *r -= weight * k as f64;
-        }
-    }
-    let alive = alive_steps(&simulated, &ends, agents, steps);
-
-    let mut advantages = vec![0.0f32; agents * steps];
-    let mut returns = vec![0.0f32; agents * steps];
-    let mut stats = CollectStats::default();
-    let mut scene_reward = vec![0.0; b * steps];
-    let mut scene_value = vec![0.0; b * (steps + 1)];
-    let mut scene_alive = vec![false; b * (steps + 1)];
-    let mut scene_truncation = vec![0.0; b * steps];
-    for i in 0..agents {
-        let (r, v, a) = (
-            &reward[i * steps..(i + 1) * steps],
-            &values[i * (steps + 1)..(i + 1) * (steps + 1)],
-            &alive[i * (steps + 1)..(i + 1) * (steps + 1)],
-        );
-        if !a[0] {
-            continue;
-        }
-        let v64: Vec<f64> = v.iter().map(|&x| x as f64).collect();
-        let truncation = truncation_values(
-            a,
-            &ends[i * steps..(i + 1) * steps],
-            &waived[i * steps..(i + 1) * steps],
-            &v64,
-            ppo.bootstrap_exits,
-        );
-        let est = gae(r, &v64, a, &truncation, ppo.gamma, ppo.gae_lambda);
-        let scene = i / n;
-        for t in 0..steps {
-            if a[t] {
-                advantages[i * steps + t] = est.advantages[t] as f32;
-                returns[i * steps + t] = est.returns[t] as f32;
-                stats.agent_steps += 1;
-                stats.reward_sum += r[t];
-                scene_reward[scene * steps + t] += r[t];
-                scene_truncation[scene * steps + t] += truncation[t];
-            }
-        }
-        for t in 0..=steps {
-            if a[t] {
-                scene_value[scene * (steps + 1) + t] += v64[t];
-                scene_alive[scene * (steps + 1) + t] = true;
-            }
-        }
-        stats.agents += 1;
-        stats.collided += usize::from(collision[i * steps..(i + 1) * steps].iter().any(|&c| c));
-        stats.offroad += usize::from(offroad[i * steps..(i + 1) * steps].iter().any(|&c| c));
-    }
-    let mut scene_adv = vec![0.0f32; b * steps];
-    let mut scene_ret = vec![0.0f32; b * steps];
-    for s in 0..b {
-        let est = gae(
-            &scene_reward[s * steps..(s + 1) * steps],
-            &scene_value[s * (steps + 1)..(s + 1) * (steps + 1)],
-            &scene_alive[s * (steps + 1)..(s + 1) * (steps + 1)],
-            &scene_truncation[s * steps..(s + 1) * steps],
-            ppo.gamma,
-            ppo.gae_lambda,
-        );
-        for t in 0..steps {
-            scene_adv[s * steps + t] = est.advantages[t] as f32;
-            scene_ret[s * steps + t] = est.returns[t] as f32;
-        }
-    }
+    let targets = Targets::estimate(&signals, [b, n, steps], ppo);
     // Drop the last (state T) column: nobody acts there.
     let acting = |v: &[bool], rows: usize| -> Vec<bool> {
         (0..rows)
@@ -559,12 +442,12 @@ pub fn collect(
     };
     Ok(Experience {
         old_log_prob: Tensor::stack(recorder.log_probs, 2),
-        alive: boolean(acting(&alive, agents), agents),
-        advantages: float(advantages, agents),
-        returns: float(returns, agents),
-        scene_alive: boolean(acting(&scene_alive, b), b),
-        scene_advantages: float(scene_adv, b),
-        scene_returns: float(scene_ret, b),
+        alive: boolean(acting(&signals.alive, b * n), b * n),
+        advantages: float(targets.advantages, b * n),
+        returns: float(targets.returns, b * n),
+        scene_alive: boolean(acting(&targets.scene_alive, b), b),
+        scene_advantages: float(targets.scene_advantages, b),
+        scene_returns: float(targets.scene_returns, b),
         actions: recorder.actions,
         reference: recorder.reference,
         noise_correlation: ppo.noise_correlation,
@@ -574,8 +457,171 @@ pub fn collect(
         observations: recorder.observations,
         steps,
         batch,
-        stats,
+        stats: targets.stats,
     })
+}
+
+/// Host copies of a collection's per agent-step signals, row-major `[B*N][T]` (`values` and
+/// `alive`: `[B*N][T+1]`).
+struct Signals {
+    /// The reward PPO sees.
+    reward: Vec<f64>,
+    /// The transition ended the agent's episode (an infraction or a shaping termination).
+    ends: Vec<bool>,
+    /// Collisions whose penalty `ppo.at_fault_collisions` waives.
+    waived: Vec<bool>,
+    collision: Vec<bool>,
+    offroad: Vec<bool>,
+    values: Vec<f32>,
+    alive: Vec<bool>,
+}
+
+impl Signals {
+    fn read(
+        out: &Rollout,
+        recorder: &Recorder,
+        part: &Part,
+        ppo: &PpoConfig,
+        rewards: &RewardSettings,
+    ) -> Self {
+        let [b, n, t1, _] = out.poses.dims();
+        let (agents, steps) = (b * n, t1 - 1);
+        let collision = host_bool(out.collision.clone());
+        let offroad = host_bool(out.offroad.clone());
+        let waived = waived_collisions(
+            &host_bool(out.struck_from_behind.clone()),
+            &offroad,
+            ppo.at_fault_collisions,
+        );
+        // A waived collision still ends the episode (the car is gone), as a truncation.
+        let mut reward: Vec<f64> = host_f32(out.rewards.clone())
+            .iter()
+            .zip(&waived)
+            .map(|(&r, &w)| if w { 0.0 } else { r as f64 })
+            .collect();
+        let mut ends = host_bool(out.collision.clone().bool_or(out.offroad.clone()));
+        if let Some(shaping) = &rewards.shaping {
+            let speeds = host_f32(out.poses.clone().narrow(3, 3, 1).reshape([b, n, t1]));
+            let centres = host_f32(out.poses.clone().narrow(3, 0, 3).reshape([b, n, t1, 3]));
+            let terms = speed_shaping(&part.scenes, n, steps, &speeds, &centres, shaping);
+            for (k, (bonus, end)) in terms.iter().enumerate() {
+                reward[k] += bonus;
+                ends[k] |= end;
+            }
+        }
+        if let (Some(weight), false) = (rewards.kl_weight, recorder.reference.is_empty()) {
+            let log_ratios = rows_by_agent(&recorder.sampled_log_ratios(), agents);
+            for (r, k) in reward.iter_mut().zip(log_ratios) {
+                *r -= weight * k as f64;
+            }
+        }
+        let simulated = host_bool(out.simulated.clone());
+        Self {
+            alive: alive_steps(&simulated, &ends, agents, steps),
+            values: rows_by_agent(&recorder.values, agents),
+            reward,
+            ends,
+            waived,
+            collision,
+            offroad,
+        }
+    }
+}
+
+/// Row-major `[agents][T]` host copy of per-step `[B, N]` tensors.
+fn rows_by_agent(per_step: &[Tensor<2>], agents: usize) -> Vec<f32> {
+    let t = per_step.len();
+    let mut out = vec![0.0; agents * t];
+    for (k, column) in per_step.iter().enumerate() {
+        for (i, v) in host_f32(column.clone())
+            .into_iter()
+            .enumerate()
+            .take(agents)
+        {
+            out[i * t + k] = v;
+        }
+    }
+    out
+}
+
+/// Advantages and returns per agent (factorized, `[B*N][T]`) and per scene (the ablation:
+/// summed rewards and values, `[B][T]`), with the collection's statistics.
+struct Targets {
+    advantages: Vec<f32>,
+    returns: Vec<f32>,
+    /// `[B][T+1]`: some agent of the scene is alive.
+    scene_alive: Vec<bool>,
+    scene_advantages: Vec<f32>,
+    scene_returns: Vec<f32>,
+    stats: CollectStats,
+}
+
+impl Targets {
+    fn estimate(s: &Signals, [b, n, steps]: [usize; 3], ppo: &PpoConfig) -> Self {
+        let mut out = Self {
+            advantages: vec![0.0; b * n * steps],
+            returns: vec![0.0; b * n * steps],
+            scene_alive: vec![false; b * (steps + 1)],
+            scene_advantages: vec![0.0; b * steps],
+            scene_returns: vec![0.0; b * steps],
+            stats: CollectStats::default(),
+        };
+        let mut scene_reward = vec![0.0; b * steps];
+        let mut scene_value = vec![0.0; b * (steps + 1)];
+        let mut scene_truncation = vec![0.0; b * steps];
+        for i in 0..b * n {
+            let transitions = i * steps..(i + 1) * steps;
+            let states = i * (steps + 1)..(i + 1) * (steps + 1);
+            let (r, a) = (&s.reward[transitions.clone()], &s.alive[states.clone()]);
+            if !a[0] {
+                continue;
+            }
+            let v: Vec<f64> = s.values[states].iter().map(|&x| x as f64).collect();
+            let truncation = truncation_values(
+                a,
+                &s.ends[transitions.clone()],
+                &s.waived[transitions.clone()],
+                &v,
+                ppo.bootstrap_exits,
+            );
+            let est = gae(r, &v, a, &truncation, ppo.gamma, ppo.gae_lambda);
+            let scene = i / n;
+            for t in (0..steps).filter(|&t| a[t]) {
+                out.advantages[i * steps + t] = est.advantages[t] as f32;
+                out.returns[i * steps + t] = est.returns[t] as f32;
+                out.stats.agent_steps += 1;
+                out.stats.reward_sum += r[t];
+                scene_reward[scene * steps + t] += r[t];
+                scene_truncation[scene * steps + t] += truncation[t];
+            }
+            for t in (0..=steps).filter(|&t| a[t]) {
+                scene_value[scene * (steps + 1) + t] += v[t];
+                out.scene_alive[scene * (steps + 1) + t] = true;
+            }
+            out.stats.agents += 1;
+            out.stats.collided += usize::from(s.collision[transitions.clone()].contains(&true));
+            out.stats.offroad += usize::from(s.offroad[transitions].contains(&true));
+        }
+        for scene in 0..b {
+            let (transitions, states) = (
+                scene * steps..(scene + 1) * steps,
+                scene * (steps + 1)..(scene + 1) * (steps + 1),
+            );
+            let est = gae(
+                &scene_reward[transitions.clone()],
+                &scene_value[states.clone()],
+                &out.scene_alive[states],
+                &scene_truncation[transitions.clone()],
+                ppo.gamma,
+                ppo.gae_lambda,
+            );
+            for (t, k) in transitions.enumerate() {
+                out.scene_advantages[k] = est.advantages[t] as f32;
+                out.scene_returns[k] = est.returns[t] as f32;
+            }
+        }
+        out
+    }
 }
 
 #[cfg(test)]

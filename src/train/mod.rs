@@ -16,7 +16,6 @@
 //!   answers.
 
 pub mod agent_dropout;
-pub mod bench;
 pub mod checkpoint;
 pub mod config;
 pub mod curves;

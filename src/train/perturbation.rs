@@ -7,8 +7,8 @@
 //! deviations its own policy makes within a 6 s window; on the A9's short stretch that taught
 //! no lane centring: a lone car started on the lane centre with a straight history drifted
 //! 1-2 m within 6 s, on the A9 and on generated roads alike. Perturbing the start state is how
-//! ChauffeurNet (Bansal et al., 2018) taught its imitation policy to recover. Measured here at
-//! 0.5 m / 0.01 rad from the recipe IL model, it did not (`experiments/recipe/results.md`).
+//! ChauffeurNet (Bansal et al., 2018) taught its imitation policy to recover; whether it does
+//! here is measured in `experiments/recipe/results.md`.
 
 use rand::Rng;
 use serde::{Deserialize, Serialize};

@@ -131,7 +131,7 @@ mod tests {
 
     use super::*;
     use crate::map::{LaneGraph, Map, ProceduralMap};
-    use crate::sim::bench::synthetic_scene;
+    use crate::scene::synthetic_scene;
 
     /// Scenes on a straight procedural road with the given agent counts.
     fn scenes_with(agents: &[usize]) -> Vec<Scene> {

@@ -16,6 +16,9 @@ use crate::geometry::OrientedBox;
 use crate::map::{LANE_NODE_FEATURES, LaneGraph, Map, neighbour_table};
 use crate::vehicle::{AgentState, VehicleClass};
 
+mod synthetic;
+pub use synthetic::synthetic_scene;
+
 /// Per-step agent features in `SceneBatch::agent_states`, in this order.
 pub const AGENT_STATE_FEATURES: [&str; 5] = ["x", "y", "heading", "speed", "accel"];
 

@@ -17,16 +17,15 @@ use std::sync::Arc;
 use burn::module::Module;
 use burn::prelude::*;
 
-use super::config::ModelConfig;
-use super::input::{AgentInput, LaneInput};
-use super::network::{PolicyNetwork, ValueNetwork};
-use crate::backend::Backend;
-use crate::error::Result;
-use crate::map::{LaneGraph, Map};
-use crate::scene::{Scene, SceneBatch};
-use crate::sim::bench::{median_seconds, synthetic_scene};
-use crate::sim::logged_frames;
-use crate::usage::{CoreMeter, peak_rss_mb, reset_peak_rss};
+use rtr::Result;
+use rtr::backend::Backend;
+use rtr::map::{LaneGraph, Map};
+use rtr::model::{AgentInput, LaneInput, ModelConfig, PolicyNetwork, ValueNetwork};
+use rtr::scene::{Scene, SceneBatch, synthetic_scene};
+use rtr::sim::logged_frames;
+use rtr::usage::{CoreMeter, peak_rss_mb, reset_peak_rss};
+
+use super::median_seconds;
 
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct ModelBench {
@@ -56,7 +55,7 @@ pub struct ModelBench {
 /// One worker's share: its batch, frames and network copies, built outside the timing.
 struct Shard {
     batch: SceneBatch,
-    frames: Vec<crate::sim::Frame>,
+    frames: Vec<rtr::sim::Frame>,
     policy: PolicyNetwork,
     value: ValueNetwork,
 }

@@ -2,6 +2,7 @@
 
 use std::path::PathBuf;
 use std::sync::Arc;
+use std::time::Instant;
 
 use clap::{Args, Subcommand};
 
@@ -13,6 +14,10 @@ use rtr::train::{PpoConfig, TrainConfig};
 use rtr::{Error, Result};
 
 use super::args::{DataArgs, count, device_count};
+
+mod model;
+mod sim;
+mod train;
 
 #[derive(Subcommand)]
 pub enum BenchCommand {
@@ -88,7 +93,7 @@ pub fn run(command: BenchCommand) -> Result<()> {
                 None => (ModelConfig::default(), PpoConfig::default()),
             };
             let devices = device_count(args.devices, args.backend)?;
-            rtr::train::bench::check_settings(
+            train::check_settings(
                 args.backend,
                 &model,
                 &ppo,
@@ -97,7 +102,7 @@ pub fn run(command: BenchCommand) -> Result<()> {
                 args.ppo_minibatch,
                 devices,
             )?;
-            serde_json::to_value(rtr::train::bench::bench_training(
+            serde_json::to_value(train::bench_training(
                 &args.data.load()?,
                 args.backend,
                 model,
@@ -111,18 +116,13 @@ pub fn run(command: BenchCommand) -> Result<()> {
         BenchCommand::Sim(args) => {
             args.backend.device(false)?;
             let (map, repetitions) = bench_inputs(&args)?;
-            serde_json::to_value(rtr::sim::bench::run(map, args.backend, repetitions)?)
+            serde_json::to_value(sim::run(map, args.backend, repetitions)?)
         }
         BenchCommand::Model(args) => {
             args.backend.device(false)?;
             let devices = device_count(args.devices, args.backend)?;
             let (map, repetitions) = bench_inputs(&args)?;
-            serde_json::to_value(rtr::model::bench::run(
-                map,
-                args.backend,
-                devices,
-                repetitions,
-            )?)
+            serde_json::to_value(model::run(map, args.backend, devices, repetitions)?)
         }
     }
     .map_err(|e| Error::InvalidArgument(format!("cannot encode report: {e}")))?;
@@ -136,4 +136,18 @@ fn bench_inputs(args: &BenchArgs) -> Result<(Arc<Map>, usize)> {
     let dir = args.data.data.clone().unwrap_or_else(a9::default_dir);
     let map = Arc::new(a9::load_map(&dir)?);
     Ok((map, args.repetitions))
+}
+
+/// Seconds of one run of `f`: one untimed warm-up run (first-use setup: query grids, kernel
+/// compilation), then the median of `repetitions` (at least one) timed runs.
+fn median_seconds(repetitions: usize, f: &mut dyn FnMut() -> Result<()>) -> Result<f64> {
+    f()?;
+    let mut times = Vec::with_capacity(repetitions.max(1));
+    for _ in 0..repetitions.max(1) {
+        let start = Instant::now();
+        f()?;
+        times.push(start.elapsed().as_secs_f64());
+    }
+    times.sort_by(f64::total_cmp);
+    Ok(times[times.len() / 2])
 }

@@ -10,14 +10,13 @@ use std::time::Instant;
 use indicatif::ProgressBar;
 use serde::Serialize;
 
-use super::config::{Method, PpoConfig, TrainConfig};
-use super::session::{devices, training_data};
-use super::trainer::{IterationTiming, Trainer};
-use crate::backend::Backend;
-use crate::data::A9Dataset;
-use crate::error::Result;
-use crate::model::ModelConfig;
-use crate::usage::{CoreMeter, peak_rss_mb, reset_peak_rss};
+use rtr::Result;
+use rtr::backend::Backend;
+use rtr::data::A9Dataset;
+use rtr::model::ModelConfig;
+use rtr::train::session::{devices, training_data};
+use rtr::train::{IterationTiming, Method, PpoConfig, TrainConfig, Trainer};
+use rtr::usage::{CoreMeter, peak_rss_mb, reset_peak_rss};
 
 #[derive(Debug, Clone, Serialize)]
 pub struct TrainBenchReport {
@@ -42,7 +41,7 @@ pub struct TrainBenchReport {
     pub il_cores_busy: Option<f64>,
     pub ppo_cores_busy: Option<f64>,
     /// Resident-memory high-water mark of each run (MiB), reset at its start. The PPO figure
-    /// includes heap the allocator kept from the IL run before it (`crate::allocator`), so it
+    /// includes heap the allocator kept from the IL run before it (`rtr::allocator`), so it
     /// is an upper bound; the process's own maximum is the figure to compare across builds.
     pub il_peak_rss_mb: Option<f64>,
     pub ppo_peak_rss_mb: Option<f64>,
@@ -165,8 +164,7 @@ pub fn bench_training(
     let per_s = |steps: usize, s: f64| steps as f64 / s.max(1e-9);
     let parameters = {
         use burn::module::Module;
-        crate::model::PolicyNetwork::new(&model, &crate::backend::Backend::reference_device(false))
-            .num_params()
+        rtr::model::PolicyNetwork::new(&model, &Backend::reference_device(false)).num_params()
     };
     Ok(TrainBenchReport {
         backend: backend.to_string(),

@@ -1,6 +1,9 @@
-//! The layers `src/lib.rs` states, enforced: no module of `src/` names (`crate::...`) a module
-//! of a higher layer. The list is read from lib.rs's doc comment, so the rule and its statement
-//! cannot drift apart; a module missing from the list fails too.
+//! The code's shape, enforced on `src/`:
+//! - the layers `src/lib.rs` states: no module names (`crate::...`) a module of a higher
+//!   layer. The list is read from lib.rs's doc comment, so the rule and its statement cannot
+//!   drift apart; a module missing from the list fails too;
+//! - no function longer than [`MAX_FUNCTION_LINES`] lines: a longer one mixes stages that
+//!   deserve names.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -211,4 +214,105 @@ fn an_upward_use_is_reported_with_its_file_and_line() {
         "{found:#?}"
     );
     assert!(found[1].contains("`predict` is in no layer"), "{found:#?}");
+}
+
+/// The longest a function in `src/` may be, signature and closing brace included.
+const MAX_FUNCTION_LINES: usize = 120;
+
+/// `(name, first line, lines)` of every function in `source` with a body. Relies on rustfmt's
+/// layout (which CI enforces): a body closes with `}` alone at the indentation of its `fn`.
+fn function_lengths(source: &str) -> Vec<(String, usize, usize)> {
+    let lines: Vec<&str> = source.lines().collect();
+    let mut out = Vec::new();
+    for (i, line) in lines.iter().enumerate() {
+        let code = line.trim_start();
+        let indent = &line[..line.len() - code.len()];
+        let Some(name) = function_name(code) else {
+            continue;
+        };
+        // A declaration without a body (a trait method) ends with `;` before any `{`.
+        let body = lines[i..]
+            .iter()
+            .position(|l| l.contains('{') || l.trim_end().ends_with(';'))
+            .filter(|&k| lines[i + k].contains('{'));
+        if body.is_none() {
+            continue;
+        }
+        let closing = format!("{indent}}}");
+        if let Some(k) = lines[i..].iter().position(|l| l.trim_end() == closing) {
+            out.push((name, i + 1, k + 1));
+        }
+    }
+    out
+}
+
+/// The name of the function `code` (a trimmed line) declares, if it declares one.
+fn function_name(code: &str) -> Option<String> {
+    let mut words = code.split_whitespace().peekable();
+    while let Some(&w) = words.peek() {
+        let qualifier = w.starts_with("pub") || ["const", "async", "unsafe", "extern"].contains(&w);
+        if !qualifier {
+            break;
+        }
+        words.next();
+    }
+    if words.next()? != "fn" {
+        return None;
+    }
+    let name: String = words
+        .next()?
+        .chars()
+        .take_while(|c| c.is_alphanumeric() || *c == '_')
+        .collect();
+    (!name.is_empty()).then_some(name)
+}
+
+fn long_functions(files: &[(PathBuf, String)]) -> Vec<String> {
+    let mut found = Vec::new();
+    for (path, source) in files {
+        for (name, line, length) in function_lengths(source) {
+            if length > MAX_FUNCTION_LINES {
+                found.push(format!(
+                    "src/{}:{line}: `{name}` is {length} lines (at most {MAX_FUNCTION_LINES})",
+                    path.display()
+                ));
+            }
+        }
+    }
+    found
+}
+
+#[test]
+fn no_function_is_longer_than_the_limit() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let mut files = Vec::new();
+    rust_files(&src, &src, &mut files);
+    let found = long_functions(&files);
+    assert!(found.is_empty(), "long functions:\n{}", found.join("\n"));
+}
+
+#[test]
+fn a_long_function_is_reported_with_its_file_line_and_length() {
+    let body = "    let x = 1;\n".repeat(MAX_FUNCTION_LINES - 2);
+    let source = format!(
+        "trait T {{\n    fn declared(&self) -> u8;\n}}\n\n\
+         pub(crate) fn fits() {{\n{body}}}\n\n\
+         impl S {{\n    pub async fn too_long(\n        &self,\n    ) {{\n{body}    }}\n}}\n"
+    );
+    let found = long_functions(&[(PathBuf::from("m/x.rs"), source.clone())]);
+    assert_eq!(
+        found,
+        [format!(
+            "src/m/x.rs:{}: `too_long` is {} lines (at most {MAX_FUNCTION_LINES})",
+            // After the trait (3 lines), a blank, `fits`, a blank and `impl S {`.
+            3 + 1 + MAX_FUNCTION_LINES + 1 + 1 + 1,
+            MAX_FUNCTION_LINES + 2
+        )]
+    );
+    let lengths = function_lengths(&source);
+    assert_eq!(lengths[0], ("fits".to_string(), 5, MAX_FUNCTION_LINES));
+    assert!(
+        lengths.iter().all(|(name, ..)| name != "declared"),
+        "a declaration without a body is not a function: {lengths:?}"
+    );
 }
