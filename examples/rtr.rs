@@ -192,7 +192,7 @@ fn train_demo(
     let started = Instant::now();
     let bar = progress(config.method.name());
     let resume = run_dir.join("checkpoints").is_dir();
-    rtr::train::session::train(config, dataset, &run_dir, resume, &bar)?;
+    rtr::train::session::train(config, dataset, &run_dir, resume, None, &bar)?;
     bar.finish_and_clear();
     println!(
         "trained {stem} ({}) in {:.0} s -> {}",

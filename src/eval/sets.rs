@@ -71,6 +71,12 @@ pub struct EvalScenes {
 }
 
 impl EvalScenes {
+    /// Keeps the first `n` scenes (a quick look at a set).
+    pub fn keep_first(&mut self, n: usize) {
+        self.scenes.truncate(n);
+        self.scenarios.truncate(n);
+    }
+
     /// Gives every scene's road (and lane graph) the speed limit `speed_limit` (m/s).
     pub fn set_speed_limit(&mut self, speed_limit: f64) {
         for scene in &mut self.scenes {

@@ -1,6 +1,6 @@
 //! A trained policy as `rtr eval` and the example load it: a run folder (or a `models/`
-//! folder) holding the run's `config.toml` and the finished `policy.bpk`, or a checkpoint
-//! folder `checkpoints/iter-NNNNNN/` of an unfinished run.
+//! folder) holding the run's `config.toml` and the finished `policy.bpk`, a checkpoint
+//! folder `checkpoints/iter-NNNNNN/`, or an unfinished run folder (its newest checkpoint).
 
 use std::path::{Path, PathBuf};
 
@@ -26,11 +26,16 @@ pub struct TrainedPolicy {
 }
 
 /// The policy file and the run config for `path` (a run folder, a checkpoint folder inside
-/// one, or a `policy.bpk` file).
+/// one, or a `policy.bpk` file). A run folder without a finished policy gives its newest
+/// checkpoint's.
 fn locate(path: &Path) -> Result<(PathBuf, PathBuf)> {
     let (dir, policy) = if path.is_file() {
         let dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
         (dir, path.to_path_buf())
+    } else if !path.join(POLICY).is_file()
+        && let Some(newest) = crate::train::checkpoint::latest(path)?
+    {
+        (newest.clone(), newest.join(POLICY))
     } else {
         (path.to_path_buf(), path.join(POLICY))
     };
@@ -58,6 +63,12 @@ fn locate(path: &Path) -> Result<(PathBuf, PathBuf)> {
 }
 
 impl TrainedPolicy {
+    /// The checkpoint (`iter-NNNNNN`) the policy was loaded from, if not a finished run's.
+    pub fn checkpoint(&self) -> Option<String> {
+        let folder = self.path.parent()?.file_name()?.to_str()?;
+        folder.starts_with("iter-").then(|| folder.to_string())
+    }
+
     /// Loads the policy at `path` onto `device` (a plain, non-autodiff device).
     pub fn load(path: &Path, device: &burn::prelude::Device) -> Result<Self> {
         let (policy_path, config_path) = locate(path)?;

@@ -80,12 +80,14 @@ pub fn check_points(base: &TrainConfig, points: &[(f64, f64)], out: &Path) -> Re
     Ok(())
 }
 
-/// Trains every point not yet finished; returns the run folders in point order.
+/// Trains every point not yet finished (with `stop_after`, at most that many iterations per
+/// point in this call); returns the run folders in point order.
 pub fn train_points(
     base: &TrainConfig,
     points: &[(f64, f64)],
     dataset: &A9Dataset,
     out: &Path,
+    stop_after: Option<usize>,
     progress: &dyn Fn(&str) -> ProgressBar,
 ) -> Result<Vec<PathBuf>> {
     check_points(base, points, out)?;
@@ -99,14 +101,15 @@ pub fn train_points(
             let config = point_config(base, lambda, alpha)?;
             let resume = dir.join("checkpoints").is_dir();
             let bar = progress(&format!("lambda {lambda} alpha {alpha}"));
-            crate::train::session::train(config, dataset, &dir, resume, &bar)?;
+            crate::train::session::train(config, dataset, &dir, resume, stop_after, &bar)?;
             bar.finish_and_clear();
             Ok(dir)
         })
         .collect()
 }
 
-/// Evaluates the points' policies on `sets`; rows are named `lambda=L alpha=A`.
+/// Evaluates the points' policies on `sets`; rows are named `lambda=L alpha=A`, with the
+/// checkpoint evaluated for a point not yet finished.
 pub fn evaluate_points(
     points: &[(f64, f64)],
     dirs: &[PathBuf],
@@ -120,8 +123,14 @@ pub fn evaluate_points(
         .map(|d| TrainedPolicy::load(d, device).map(|t| Entry::Trained(Box::new(t))))
         .collect::<Result<Vec<_>>>()?;
     let mut results = evaluate_entries(&entries, sets, device, config, progress)?;
-    for (r, (lambda, alpha)) in results.iter_mut().zip(points) {
-        r.method = format!("lambda={lambda} alpha={alpha}");
+    for ((r, (lambda, alpha)), entry) in results.iter_mut().zip(points).zip(&entries) {
+        r.method = match entry {
+            Entry::Trained(t) if t.checkpoint().is_some() => format!(
+                "lambda={lambda} alpha={alpha} ({}, unfinished)",
+                t.checkpoint().unwrap_or_default()
+            ),
+            _ => format!("lambda={lambda} alpha={alpha}"),
+        };
     }
     Ok(results)
 }

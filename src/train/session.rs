@@ -24,16 +24,18 @@ pub fn training_data(dataset: &A9Dataset, config: &TrainConfig) -> Result<Traini
     TrainingData::load(dataset, &config.data, config.alpha > 0.0)
 }
 
-/// Trains (or with `resume` continues) the run of `config` in `run_dir`.
+/// Trains (or with `resume` continues) the run of `config` in `run_dir`; `stop_after` ends
+/// this call after that many iterations, with a checkpoint to resume from.
 pub fn train(
     config: TrainConfig,
     dataset: &A9Dataset,
     run_dir: &Path,
     resume: bool,
+    stop_after: Option<usize>,
     progress: &ProgressBar,
 ) -> Result<TrainSummary> {
     let data = training_data(dataset, &config)?;
     let devices = devices(&config)?;
     let mut trainer = Trainer::new(config, &data, devices, run_dir, resume)?;
-    trainer.run(progress, None)
+    trainer.run(progress, stop_after)
 }

@@ -6,7 +6,7 @@ use clap::Args;
 
 use rtr::backend::Backend;
 use rtr::data::{SceneConfig, bend_scenes, commonroad};
-use rtr::eval::study::{evaluate_entries, load_entries, write_study};
+use rtr::eval::study::{Entry, evaluate_entries, load_entries, write_study};
 use rtr::eval::{EvalConfig, EvalScenes, EvalSet, load_sets, markdown_table};
 use rtr::io::{OutputKind, StagedFolder, check_output};
 use rtr::{Error, Result};
@@ -55,6 +55,9 @@ pub struct EvalArgs {
     /// Scenes per tensor batch.
     #[arg(long, default_value_t = 16, value_parser = count(1, 4096))]
     batch: usize,
+    /// Evaluate only the first N scenes of each set (a quick look).
+    #[arg(long, value_parser = count(1, 1_000_000))]
+    scenes: Option<usize>,
     #[arg(long, default_value_t = Backend::cpu_default())]
     backend: Backend,
     #[command(flatten)]
@@ -96,6 +99,17 @@ pub fn run(args: EvalArgs) -> Result<()> {
     let device = args.backend.device(false)?;
     let commonroad = commonroad_set(&args.commonroad, args.commonroad_speed_limit)?;
     let entries = load_entries(&args.checkpoints, args.idm, &device)?;
+    for (path, entry) in args.checkpoints.iter().zip(&entries) {
+        if let Entry::Trained(t) = entry
+            && let Some(checkpoint) = t.checkpoint()
+            && !path.ends_with(&checkpoint)
+        {
+            eprintln!(
+                "{}: the run is not finished; evaluating its newest checkpoint, {checkpoint}",
+                path.display()
+            );
+        }
+    }
     let dataset = args.data.load()?;
     sets.retain(|&s| s != EvalSet::CommonRoad || commonroad.is_none());
     let mut scenes = load_sets(&dataset, args.scenarios.as_deref(), &sets)?;
@@ -118,6 +132,9 @@ pub fn run(args: EvalArgs) -> Result<()> {
         sets.push(EvalSet::CommonRoad);
         scenes.push(set);
         clip_summaries = summaries;
+    }
+    if let Some(n) = args.scenes {
+        scenes.iter_mut().for_each(|s| s.keep_first(n));
     }
     let config = EvalConfig {
         batch: args.batch,

@@ -32,6 +32,14 @@ pub struct SweepArgs {
     /// Bootstrap resamples over scenes (at least 100).
     #[arg(long, default_value_t = 1000, value_parser = count(100, 1_000_000))]
     resamples: usize,
+    /// Train each unfinished point at most this many iterations in this call (run the same
+    /// command again to continue); a point not yet finished is evaluated at its newest
+    /// checkpoint.
+    #[arg(long, value_parser = count(1, 1_000_000_000))]
+    stop_after: Option<usize>,
+    /// Evaluate only the first N scenes of each set (a quick look).
+    #[arg(long, value_parser = count(1, 1_000_000))]
+    scenes: Option<usize>,
     #[command(flatten)]
     data: DataArgs,
 }
@@ -61,9 +69,12 @@ pub fn run(args: SweepArgs) -> Result<()> {
         b.set_prefix(prefix.to_string());
         b
     };
-    let dirs = train_points(&base, &points, &dataset, &args.out, &bar)?;
+    let dirs = train_points(&base, &points, &dataset, &args.out, args.stop_after, &bar)?;
     let device = rtr::backend::Backend::NdArray.device(false)?;
-    let scenes = load_sets(&dataset, args.scenarios.as_deref(), &sets)?;
+    let mut scenes = load_sets(&dataset, args.scenarios.as_deref(), &sets)?;
+    if let Some(n) = args.scenes {
+        scenes.iter_mut().for_each(|s| s.keep_first(n));
+    }
     let config = EvalConfig {
         resamples: args.resamples,
         realism_samples: 0,

@@ -7,7 +7,7 @@ use clap::Args;
 use rtr::io::{OutputKind, check_output};
 use rtr::{Error, Result};
 
-use super::args::DataArgs;
+use super::args::{DataArgs, count};
 
 #[derive(Args)]
 pub struct TrainArgs {
@@ -32,6 +32,10 @@ pub struct TrainArgs {
     /// `run.keep_checkpoints`, else 1), e.g. to evaluate the last few side by side.
     #[arg(long)]
     keep_checkpoints: Option<usize>,
+    /// Stop after this many iterations of this call, with a checkpoint (continue it with
+    /// --resume): a long run in sittings, or a quick look at a run file.
+    #[arg(long, value_parser = count(1, 1_000_000_000))]
+    stop_after: Option<usize>,
     #[command(flatten)]
     data: DataArgs,
 }
@@ -85,13 +89,26 @@ pub fn run(args: TrainArgs) -> Result<()> {
     );
     progress.set_prefix(method.to_string());
     let created = !out.exists();
-    let summary = rtr::train::session::train(config, &dataset, &out, args.resume, &progress)
-        .inspect_err(|_| {
-            if !args.resume {
-                remove_unfinished_run(&out, created);
-            }
-        })?;
+    let summary = rtr::train::session::train(
+        config,
+        &dataset,
+        &out,
+        args.resume,
+        args.stop_after,
+        &progress,
+    )
+    .inspect_err(|_| {
+        if !args.resume {
+            remove_unfinished_run(&out, created);
+        }
+    })?;
     progress.finish();
+    if !out.join("policy.bpk").is_file() {
+        println!(
+            "stopped after {} of the run's iterations (--stop-after); continue with --resume",
+            summary.iterations
+        );
+    }
     println!(
         "{method}: {} iterations, {} optimizer steps; checkpoint {}; curves {}",
         summary.iterations,
