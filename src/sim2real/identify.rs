@@ -318,7 +318,7 @@ impl<'a> Fitter<'a> {
     }
 
     /// Fits `candidate` by gradient descent and scores it.
-    fn fit(&self, candidate: &Candidate) -> Evaluated {
+    fn fit_and_score(&self, candidate: &Candidate) -> Evaluated {
         self.score(fit(
             candidate,
             &self.train,
@@ -327,9 +327,9 @@ impl<'a> Fitter<'a> {
         ))
     }
 
-    /// [`Self::fit`] with the standard errors of its parameters, for the report.
+    /// [`Self::fit_and_score`] with the standard errors of its parameters, for the report.
     fn fit_with_errors(&self, candidate: &Candidate) -> Evaluated {
-        let mut out = self.fit(candidate);
+        let mut out = self.fit_and_score(candidate);
         self.add_standard_errors(&mut out);
         out
     }
@@ -508,7 +508,7 @@ fn choose(
     }
     let best_pair = partners
         .par_iter()
-        .map(|c| fitter.fit(c))
+        .map(|c| fitter.fit_and_score(c))
         .collect::<Vec<_>>()
         .into_iter()
         .map(|p| {
