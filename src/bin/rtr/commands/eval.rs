@@ -100,9 +100,11 @@ pub fn run(args: EvalArgs) -> Result<()> {
     let commonroad = commonroad_set(&args.commonroad, args.commonroad_speed_limit)?;
     let entries = load_entries(&args.checkpoints, args.idm, &device)?;
     for (path, entry) in args.checkpoints.iter().zip(&entries) {
+        // Given a run folder, not the checkpoint folder or policy file that was loaded.
         if let Entry::Trained(t) = entry
             && let Some(checkpoint) = t.checkpoint()
-            && !path.ends_with(&checkpoint)
+            && t.path != *path
+            && t.path.parent() != Some(path.as_path())
         {
             eprintln!(
                 "{}: the run is not finished; evaluating its newest checkpoint, {checkpoint}",
