@@ -43,5 +43,5 @@ fn main() {
         "box_checks_per_s": boxes / infr_best,
         "scene_batch_32_s": batch_best,
     });
-    println!("{report}");
+    rtr::outln!("{report}").expect("standard output");
 }

@@ -34,7 +34,7 @@ enum Baseline {
 }
 
 fn usage(message: &str) -> ! {
-    eprintln!(
+    rtr::errln!(
         "side_by_side: {message}\nusage: cargo bench --bench side_by_side -- \
          (--baseline-bin PATH | --baseline-commit REV) [--runs N] [--bench train,model,sim] \
          [-- ARGS FOR BOTH]"
@@ -95,7 +95,7 @@ fn run_checked(command: &mut Command, what: &str) -> Vec<u8> {
         .output()
         .unwrap_or_else(|e| usage(&format!("cannot start {what}: {e}")));
     if !output.status.success() {
-        eprintln!("{}", String::from_utf8_lossy(&output.stderr));
+        rtr::errln!("{}", String::from_utf8_lossy(&output.stderr));
         usage(&format!("{what} failed ({})", output.status));
     }
     output.stdout
@@ -130,7 +130,7 @@ fn baseline_binary(baseline: &Baseline) -> PathBuf {
         );
     }
     let target = base.join("target");
-    eprintln!("side_by_side: building {commit} in {}", tree.display());
+    rtr::errln!("side_by_side: building {commit} in {}", tree.display());
     let status = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
         .args(["build", "--release", "--locked", "--bin", "rtr"])
         .arg("--target-dir")
@@ -217,7 +217,7 @@ fn main() {
     for bench in &options.benches {
         let (mut base_runs, mut cur_runs) = (Vec::new(), Vec::new());
         for run in 0..options.runs {
-            eprintln!("side_by_side: {bench} run {}/{}", run + 1, options.runs);
+            rtr::errln!("side_by_side: {bench} run {}/{}", run + 1, options.runs);
             // Alternate the order so a drift in machine load favours neither build.
             if run % 2 == 0 {
                 base_runs.push(measure(&baseline, bench, &options.passthrough));
@@ -238,5 +238,5 @@ fn main() {
             "passthrough": options.passthrough,
         }),
     );
-    println!("{}", Value::Object(report));
+    rtr::outln!("{}", Value::Object(report)).expect("standard output");
 }

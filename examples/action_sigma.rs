@@ -23,7 +23,7 @@ fn main() -> std::process::ExitCode {
     match run() {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("action_sigma: {e}");
+            rtr::errln!("action_sigma: {e}");
             std::process::ExitCode::from(2)
         }
     }
@@ -44,15 +44,15 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
     let dataset = rtr::data::a9::A9Dataset::load(&rtr::data::a9::default_dir())?;
     let train = dataset.scenes(&SceneConfig::default())?.train;
     let scenes: Vec<&rtr::scene::Scene> = train.iter().collect();
-    println!(
+    rtr::outln!(
         "| policy | agent-steps | acceleration: mean error RMS (m/s^2) | sigma RMS (m/s^2) | sigma / error | steering: mean error RMS (rad) | sigma RMS (rad) | sigma / error |"
-    );
-    println!("|---|---|---|---|---|---|---|---|");
+    )?;
+    rtr::outln!("|---|---|---|---|---|---|---|---|")?;
     for (path, policy) in checkpoints.iter().zip(&policies) {
         let limits = &policy.config.limits;
         let fit = logged_action_fit(&policy.network, &scenes, limits, BATCH, &device)?;
         let [error, sigma] = [fit.mean_error_rms, fit.sigma_rms];
-        println!(
+        rtr::outln!(
             "| {path} | {} | {:.3} | {:.3} | {:.2} | {:.5} | {:.5} | {:.2} |",
             fit.count,
             error[0],
@@ -61,7 +61,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
             error[1],
             sigma[1],
             sigma[1] / error[1]
-        );
+        )?;
     }
     Ok(())
 }

@@ -68,7 +68,7 @@ fn main() -> std::process::ExitCode {
     match run() {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("car_following: {e}");
+            rtr::errln!("car_following: {e}");
             std::process::ExitCode::from(2)
         }
     }
@@ -146,17 +146,17 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         drivers.push(("IDM".into(), Box::new(idm), Dynamics::bicycle(DT)));
     }
 
-    println!(
+    rtr::outln!(
         "| policy | leader | closing speed (m/s) | gap (m) | follower accel, first 2 s (m/s^2) | smallest gap (m) | lateral offset at 6 s (m) | contact |"
-    );
-    println!("|---|---|---|---|---|---|---|---|");
+    )?;
+    rtr::outln!("|---|---|---|---|---|---|---|---|")?;
     let mut summaries = Vec::new();
     for (name, policy, dynamics) in &drivers {
         let simulated = simulate_set(policy.as_ref(), dynamics, &set, &device, &config, None)?;
         let measured: Vec<Following> = simulated.iter().map(|s| measure(s, lane_y)).collect();
         summaries.push((name.clone(), summary(&cases, &measured)));
         for (case, m) in cases.iter().zip(&measured) {
-            println!(
+            rtr::outln!(
                 "| {name} | {} | {:.0} | {:.0} | {:+.2} | {:.1} | {:.2} | {} |",
                 if case.leader_brakes {
                     "brakes 4 m/s^2"
@@ -169,30 +169,30 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
                 m.smallest_gap,
                 m.lateral_offset,
                 if m.contact { "yes" } else { "no" }
-            );
+            )?;
         }
     }
-    println!();
-    println!(
+    rtr::outln!()?;
+    rtr::outln!(
         "| policy | accel, steady leader, closing 0 / 4 / 8 m/s (m/s^2) | accel, braking leader, closing 0 / 4 / 8 m/s (m/s^2) | cases with a contact |"
-    );
-    println!("|---|---|---|---|");
+    )?;
+    rtr::outln!("|---|---|---|---|")?;
     for (name, s) in summaries {
         let show = |a: &[f64; 3]| format!("{:+.2} / {:+.2} / {:+.2}", a[0], a[1], a[2]);
-        println!(
+        rtr::outln!(
             "| {name} | {} | {} | {} of {} |",
             show(&s.steady),
             show(&s.braking),
             s.contacts,
             cases.len()
-        );
+        )?;
     }
     if with_kicks {
-        println!();
+        rtr::outln!()?;
         print_kicks(&drivers, &set, &cases, lane_y, &device, &config)?;
     }
     if with_approached {
-        println!();
+        rtr::outln!()?;
         let road = (&map, &graph, lane_y);
         print_approached(&drivers, road, &device, &config)?;
     }
@@ -220,10 +220,10 @@ fn print_approached(
             .map(|(k, &(closing, gap))| approached_scene(k, closing, gap, map, graph, lane_y))
             .collect(),
     );
-    println!(
+    rtr::outln!(
         "| policy | accel when approached from behind, closing 0 / 4 / 8 m/s, first 2 s (m/s^2) |"
-    );
-    println!("|---|---|");
+    )?;
+    rtr::outln!("|---|---|")?;
     for (name, policy, dynamics) in drivers {
         let simulated = simulate_set(policy.as_ref(), dynamics, &set, device, config, None)?;
         let accel: Vec<f64> = simulated
@@ -240,7 +240,7 @@ fn print_approached(
             picked.iter().sum::<f64>() / picked.len().max(1) as f64
         };
         let [a0, a4, a8] = CLOSING_SPEEDS.map(mean);
-        println!("| {name} | {a0:+.2} / {a4:+.2} / {a8:+.2} |");
+        rtr::outln!("| {name} | {a0:+.2} / {a4:+.2} / {a8:+.2} |")?;
     }
     Ok(())
 }
@@ -268,10 +268,10 @@ fn print_kicks(
         ("steer left 1 sigma", 0.0, KICK_SIGMA[1]),
         ("steer right 1 sigma", 0.0, -KICK_SIGMA[1]),
     ];
-    println!(
+    rtr::outln!(
         "| policy | first action kicked | contacts | off-road | lateral offset at 6 s (m) | return change vs none, mean over cases (x 1000) | cases whose outcome changed |"
-    );
-    println!("|---|---|---|---|---|---|---|");
+    )?;
+    rtr::outln!("|---|---|---|---|---|---|---|")?;
     for (name, policy, dynamics) in drivers {
         let mut baseline: Option<Vec<Outcome>> = None;
         for (label, accel, steer) in kicks {
@@ -296,13 +296,13 @@ fn print_kicks(
                 .count();
             let offset =
                 outcomes.iter().map(|o| o.lateral_offset).sum::<f64>() / cases.len() as f64;
-            println!(
+            rtr::outln!(
                 "| {name} | {label} | {} | {} | {offset:+.2} | {:+.1} | {changed} of {} |",
                 outcomes.iter().filter(|o| o.contact).count(),
                 outcomes.iter().filter(|o| o.offroad).count(),
                 1000.0 * change,
                 cases.len()
-            );
+            )?;
         }
     }
     Ok(())

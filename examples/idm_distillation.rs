@@ -60,7 +60,7 @@ fn main() -> std::process::ExitCode {
     match run() {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("idm_distillation: {e}");
+            rtr::errln!("idm_distillation: {e}");
             std::process::ExitCode::from(2)
         }
     }
@@ -212,12 +212,12 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         clip_global_norm(&policy, &mut grads, GRAD_CLIP_NORM);
         policy = optimizer.step(args.learning_rate, policy, grads);
         if step % REPORT_EVERY == 0 || step == args.steps {
-            println!("{}", report.json(step, wall.elapsed().as_secs_f64()));
+            rtr::outln!("{}", report.json(step, wall.elapsed().as_secs_f64()))?;
             report = Report::default();
         }
     }
     save(&policy, &start.config, &args.out)?;
-    eprintln!(
+    rtr::errln!(
         "idm_distillation: wrote {} after {} steps in {:.0} s",
         args.out.display(),
         args.steps,
@@ -438,7 +438,7 @@ impl Report {
 /// Writes `policy` with `config` (its model config replaced by the policy's) to `out`; the
 /// policy file goes last, so a folder with a policy.bpk is complete.
 fn save(policy: &PolicyNetwork, config: &TrainConfig, out: &Path) -> rtr::Result<()> {
-    std::fs::create_dir_all(out).map_err(|e| rtr::Error::io(out, e))?;
+    rtr::io::create_folder(out)?;
     let mut config = config.clone();
     config.model = policy.config().clone();
     let text = toml::to_string(&config)

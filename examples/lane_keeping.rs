@@ -83,10 +83,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ..Default::default()
     };
 
-    println!(
+    rtr::outln!(
         "| policy | map | lone cars | mean distance to a lane centre (m) | in another lane or off road at 6 s |"
-    );
-    println!("|---|---|---|---|---|");
+    )?;
+    rtr::outln!("|---|---|---|---|---|")?;
     let mut traffic_rows = Vec::new();
     for path in &checkpoints {
         let policy = TrainedPolicy::load(Path::new(path), &device)?;
@@ -102,11 +102,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         };
         for (name, set) in &lone_sets {
             let (centre, left) = lone_car_drift(&run(set)?);
-            println!(
+            rtr::outln!(
                 "| {path} | {name} | {} | {centre:.2} | {:.0} % |",
                 set.scenes.len(),
                 100.0 * left
-            );
+            )?;
         }
         let in_traffic = run(&test)?;
         let on_its_own = run(&alone.scenes)?;
@@ -115,9 +115,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             tracking_errors(&test, &in_traffic, &alone, &on_its_own),
         ));
     }
-    println!();
-    println!("| policy | agents | error to log at 2 / 4 / 6 s in traffic (m) | alone (m) |");
-    println!("|---|---|---|---|");
+    rtr::outln!()?;
+    rtr::outln!("| policy | agents | error to log at 2 / 4 / 6 s in traffic (m) | alone (m) |")?;
+    rtr::outln!("|---|---|---|---|")?;
     for (path, errors) in traffic_rows {
         let show = |e: &[f64]| {
             e.iter()
@@ -125,12 +125,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 .collect::<Vec<_>>()
                 .join(" / ")
         };
-        println!(
+        rtr::outln!(
             "| {path} | {} | {} | {} |",
             errors.agents,
             show(&errors.in_traffic),
             show(&errors.alone)
-        );
+        )?;
     }
     Ok(())
 }

@@ -65,7 +65,7 @@ fn main() -> std::process::ExitCode {
     match run() {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("ppo_signal: {e}");
+            rtr::errln!("ppo_signal: {e}");
             std::process::ExitCode::from(2)
         }
     }
@@ -140,7 +140,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         .iter()
         .flat_map(|e| agent_sums(e, &policy))
         .collect();
-    print_report(&sums, &experience, sigma);
+    print_report(&sums, &experience, sigma)?;
     Ok(())
 }
 
@@ -292,7 +292,11 @@ fn situations(agents: &AgentInput, lengths: &[f32], policy: &PolicyNetwork) -> V
     out
 }
 
-fn print_report(sums: &[AgentSums], experience: &[Experience], sigma: Option<[f64; 2]>) {
+fn print_report(
+    sums: &[AgentSums],
+    experience: &[Experience],
+    sigma: Option<[f64; 2]>,
+) -> rtr::Result<()> {
     let collided: usize = experience.iter().map(|e| e.stats.collided).sum();
     let offroad: usize = experience.iter().map(|e| e.stats.offroad).sum();
     let agents: usize = experience.iter().map(|e| e.stats.agents).sum();
@@ -322,10 +326,10 @@ fn print_report(sums: &[AgentSums], experience: &[Experience], sigma: Option<[f6
         "offroad_pct": 100.0 * offroad as f64 / agents.max(1) as f64,
         "classes": classes,
     });
-    println!(
+    rtr::outln!(
         "{}",
         serde_json::to_string_pretty(&report).unwrap_or_default()
-    );
+    )
 }
 
 /// Mean per agent-step of per-agent sums `x` (over `steps` steps in all), and its t statistic

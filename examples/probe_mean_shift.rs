@@ -54,7 +54,7 @@ impl Policy for Shifted<'_> {
     }
 }
 
-fn main() {
+fn main() -> rtr::Result<()> {
     for (task, variants) in [
         (
             ProbeTask::Brake,
@@ -71,12 +71,13 @@ fn main() {
             vec![(0.0, 0.0), (0.0, 0.05), (0.0, 0.1), (0.0, 0.2), (0.0, 0.4)],
         ),
     ] {
-        measure(task, &variants);
+        measure(task, &variants)?;
     }
+    Ok(())
 }
 
 /// Per (acceleration shift, heading gain): collisions and off-road on 64 held-out draws.
-fn measure(task: ProbeTask, variants: &[(f32, f64)]) {
+fn measure(task: ProbeTask, variants: &[(f32, f64)]) -> rtr::Result<()> {
     let data = A9Dataset::load(&a9::default_dir()).unwrap();
     let stats = TrafficStatistics::from_recording(&data.recording, &data.map, 1.0);
     let sets = probe_scenarios(task, &stats, 1, 64, 7).unwrap();
@@ -102,11 +103,12 @@ fn measure(task: ProbeTask, variants: &[(f32, f64)]) {
             })
         })
         .unwrap();
-        println!(
+        rtr::outln!(
             "{task:?} accel shift {accel}, heading gain {heading_gain}: cars {}, collision {:.1} %, off-road {:.1} %",
             outcomes.cars,
             outcomes.pct(outcomes.collided),
             outcomes.pct(outcomes.offroad)
-        );
+        )?;
     }
+    Ok(())
 }

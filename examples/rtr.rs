@@ -63,7 +63,7 @@ fn main() -> std::process::ExitCode {
     match run(Args::parse()) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e}");
+            rtr::errln!("error: {e}");
             std::process::ExitCode::FAILURE
         }
     }
@@ -85,24 +85,24 @@ fn run(args: Args) -> rtr::Result<()> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let dataset = A9Dataset::load(&a9::default_dir())?;
     let split = dataset.scenes(&SceneConfig::default())?;
-    println!(
+    rtr::outln!(
         "A9: {} vehicles over {:.0} s; {} training and {} test scenes (dt 0.5 s, 2 s history, 6 s future)",
         dataset.recording.tracks.len(),
         dataset.recording.duration(),
         split.train.len(),
         split.test.len()
-    );
+    )?;
 
     let scenarios = args.out.join("scenarios");
     if scenarios.join("ood").is_dir() {
-        println!("long-tail sets: reusing {}", scenarios.display());
+        rtr::outln!("long-tail sets: reusing {}", scenarios.display())?;
     } else {
         let started = Instant::now();
         let families = load_families(&builtin_families())?;
         let stats = TrafficStatistics::from_recording(&dataset.recording, &dataset.map, 1.0);
         let sets = generate_sets(&families, &stats, &GenerateConfig::default())?;
         let written = sets.write(&scenarios)?;
-        println!(
+        rtr::outln!(
             "long-tail sets: {} train / {} eval / {} OOD scenarios from {} families in {:.0} s -> {}",
             sets.train.len(),
             sets.eval.len(),
@@ -110,7 +110,7 @@ fn run(args: Args) -> rtr::Result<()> {
             families.len(),
             started.elapsed().as_secs_f64(),
             scenarios.display()
-        );
+        )?;
         debug_assert_eq!(written, sets.train.len() + sets.eval.len() + sets.ood.len());
     }
 
@@ -137,12 +137,12 @@ fn run(args: Args) -> rtr::Result<()> {
     }
     entries.push(Entry::idm());
     names.push("IDM".into());
-    println!(
+    rtr::outln!(
         "evaluating {} policies ({} trained here, {} shipped in models/, IDM) on nominal, long-tail and OOD",
         entries.len(),
         entries.len() - 1 - shipped.len(),
         shipped.len()
-    );
+    )?;
 
     let sets = [EvalSet::Nominal, EvalSet::Longtail, EvalSet::Ood];
     let scenes = load_sets(&dataset, Some(&scenarios), &sets)?;
@@ -150,7 +150,7 @@ fn run(args: Args) -> rtr::Result<()> {
     let results = evaluate_entries(&entries, &scenes, &device, &EvalConfig::default(), &bar)?;
     bar.finish_and_clear();
     // Rows trained here are told apart from the shipped ones by their folder.
-    println!("\n{}", markdown_table(&results, &sets));
+    rtr::outln!("\n{}", markdown_table(&results, &sets))?;
     let find = |folder: &str| {
         names
             .iter()
@@ -158,16 +158,16 @@ fn run(args: Args) -> rtr::Result<()> {
             .map(|k| &results[k])
     };
     if let (Some(il), Some(rtr)) = (find("models/il_main"), find("models/rtr_main")) {
-        println!("{}", headline(il, rtr));
+        rtr::outln!("{}", headline(il, rtr))?;
     }
     let written = write_study(&args.out, &entries, &results, &scenes, &device)?;
-    println!(
+    rtr::outln!(
         "wrote {} files (results.json, table.md, Pareto plots, histograms, curves, rollouts) to {}\n\
          done in {:.0} s",
         written.len(),
         args.out.display(),
         clock.elapsed().as_secs_f64()
-    );
+    )?;
     Ok(())
 }
 
@@ -183,7 +183,7 @@ fn train_demo(
         .map_or("run".into(), |s| s.to_string_lossy().into_owned());
     let run_dir = args.out.join("runs").join(&stem);
     if run_dir.join("policy.bpk").is_file() {
-        println!("trained {stem}: reusing {}", run_dir.display());
+        rtr::outln!("trained {stem}: reusing {}", run_dir.display())?;
         return Ok(run_dir);
     }
     let mut config = TrainConfig::from_toml_file(run_file)?;
@@ -194,12 +194,12 @@ fn train_demo(
     let resume = run_dir.join("checkpoints").is_dir();
     rtr::train::session::train(config, dataset, &run_dir, resume, None, &bar)?;
     bar.finish_and_clear();
-    println!(
+    rtr::outln!(
         "trained {stem} ({}) in {:.0} s -> {}",
         run_file.display(),
         started.elapsed().as_secs_f64(),
         run_dir.display()
-    );
+    )?;
     Ok(run_dir)
 }
 
@@ -207,12 +207,10 @@ fn train_demo(
 fn shipped_models(models: &Path, all: bool) -> rtr::Result<Vec<PathBuf>> {
     let mut folders: Vec<PathBuf> = COMPARISON.iter().map(|m| models.join(m)).collect();
     if all {
-        let mut others: Vec<PathBuf> = std::fs::read_dir(models)
-            .map_err(|e| rtr::Error::io(models, e))?
-            .filter_map(|e| e.ok().map(|e| e.path()))
+        let others: Vec<PathBuf> = rtr::io::list_folder(models)?
+            .into_iter()
             .filter(|p| p.join("policy.bpk").is_file() && !folders.contains(p))
             .collect();
-        others.sort();
         folders.extend(others);
     }
     Ok(folders)

@@ -32,10 +32,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     cases.retain(|(name, _)| wanted.is_empty() || wanted.contains(name));
 
-    println!(
+    rtr::outln!(
         "| concealed | truth | found first | fitted | baseline RMSE (m) | final RMSE (m) | drop | noise floor (m) | unexplained | time (s) |"
-    );
-    println!("|---|---|---|---|---|---|---|---|---|---|");
+    )?;
+    rtr::outln!("|---|---|---|---|---|---|---|---|---|---|")?;
     for (name, config) in cases {
         let started = Instant::now();
         let recordings = generate(&config, &device);
@@ -58,7 +58,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 format!("wheelbase x{:.3}", report.final_model.wheelbase_scale.value),
             ),
         };
-        println!(
+        rtr::outln!(
             "| {name} | {truth} | {found} | {fitted} | {:.3} | {:.3} | {:.0} % | {:.3} | {} | {:.0} |",
             report.baseline.heldout_pos_rmse_m,
             report.final_model.heldout_pos_rmse_m,
@@ -73,10 +73,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 )
             },
             started.elapsed().as_secs_f64()
-        );
+        )?;
         if std::env::var_os("RTR_VERBOSE").is_some() {
             for line in report.summary() {
-                eprintln!("  {line}");
+                rtr::errln!("  {line}");
             }
         }
     }

@@ -10,7 +10,7 @@ const USER_HZ: f64 = 100.0;
 
 /// CPU seconds (user + system) this process has used so far.
 fn cpu_seconds() -> Option<f64> {
-    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    let stat = crate::io::read_process_file("stat")?;
     // The command name (field 2) is in parentheses and may hold spaces: count from its end.
     let after = &stat[stat.rfind(')')? + 1..];
     let fields: Vec<&str> = after.split_whitespace().collect();
@@ -22,7 +22,7 @@ fn cpu_seconds() -> Option<f64> {
 
 /// Resident-set high-water mark of this process (MiB), from `/proc/self/status`.
 pub fn peak_rss_mb() -> Option<f64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let status = crate::io::read_process_file("status")?;
     let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
     let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kib / 1024.0)
@@ -30,7 +30,7 @@ pub fn peak_rss_mb() -> Option<f64> {
 
 /// Resets the high-water mark to the current resident size (Linux >= 4.0).
 pub fn reset_peak_rss() {
-    let _ = std::fs::write("/proc/self/clear_refs", "5");
+    crate::io::write_process_file("clear_refs", "5");
 }
 
 /// Measures the cores a stretch of work kept busy: CPU time over wall time since `start`.

@@ -3,7 +3,10 @@
 //!   layer. The list is read from lib.rs's doc comment, so the rule and its statement cannot
 //!   drift apart; a module missing from the list fails too;
 //! - no function longer than [`MAX_FUNCTION_LINES`] lines: a longer one mixes stages that
-//!   deserve names.
+//!   deserve names;
+//! - no file access or printing outside `src/io/` (in `src/` and `examples/`): every input
+//!   goes through its one opener, every output through its one writer, every print through
+//!   its console.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -154,14 +157,14 @@ fn upward_uses(layers: &BTreeMap<String, usize>, files: &[(PathBuf, String)]) ->
 }
 
 fn rust_files(dir: &Path, root: &Path, out: &mut Vec<(PathBuf, String)>) {
-    for entry in std::fs::read_dir(dir).expect("src/ is readable") {
+    for entry in std::fs::read_dir(dir).expect("a readable source folder") {
         let path = entry.expect("a directory entry").path();
         if path.is_dir() {
             rust_files(&path, root, out);
         } else if path.extension().is_some_and(|e| e == "rs") {
             let source = std::fs::read_to_string(&path).expect("a UTF-8 source file");
             out.push((
-                path.strip_prefix(root).expect("under src").to_path_buf(),
+                path.strip_prefix(root).expect("under root").to_path_buf(),
                 source,
             ));
         }
@@ -315,4 +318,116 @@ fn a_long_function_is_reported_with_its_file_line_and_length() {
         lengths.iter().all(|(name, ..)| name != "declared"),
         "a declaration without a body is not a function: {lengths:?}"
     );
+}
+
+/// What only `src/io/` may write: file-system calls and the printing macros (which panic on a
+/// closed pipe). Everything else reads and writes through `rtr::io`, so that every input is
+/// opened by the one opener and every output written by the one writer.
+const IO_ONLY: [&str; 8] = [
+    "std::fs",
+    "fs::",
+    "File::",
+    "OpenOptions",
+    "println!(",
+    "print!(",
+    "eprintln!(",
+    "eprint!(",
+];
+
+/// Whether `code` names `item` as a whole path or macro (`DynamicsFile::load` does not name
+/// `File::`).
+fn names_item(code: &str, item: &str) -> bool {
+    code.match_indices(item).any(|(at, _)| {
+        !code[..at]
+            .chars()
+            .next_back()
+            .is_some_and(|c| c.is_alphanumeric() || c == '_')
+    })
+}
+
+/// The files of `files` that only tests compile: modules declared under `#[cfg(test)]`.
+fn test_only_files(files: &[(PathBuf, String)]) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    for (path, source) in files {
+        let module_dir = match path.file_name().and_then(|n| n.to_str()) {
+            Some("mod.rs" | "lib.rs" | "main.rs") => path.parent().unwrap_or(Path::new("")).into(),
+            _ => path.with_extension(""),
+        };
+        let lines: Vec<&str> = source.lines().collect();
+        for pair in lines.windows(2) {
+            let declared = pair[1]
+                .trim()
+                .trim_start_matches("pub ")
+                .strip_prefix("mod ");
+            if let (true, Some(name)) = (pair[0].trim() == "#[cfg(test)]", declared) {
+                let name = name.trim_end_matches(';');
+                out.push(module_dir.join(format!("{name}.rs")));
+                out.push(module_dir.join(name).join("mod.rs"));
+            }
+        }
+    }
+    out
+}
+
+/// Every use of an [`IO_ONLY`] item outside `src/io/` and outside test code (test-only files
+/// and a file's trailing `#[cfg(test)] mod` block), as "file:line: ..." messages; `files`
+/// are named relative to the repository.
+fn io_outside_io(files: &[(PathBuf, String)]) -> Vec<String> {
+    let test_only = test_only_files(files);
+    let mut found = Vec::new();
+    for (path, source) in files {
+        if path.starts_with("src/io") || test_only.contains(path) {
+            continue;
+        }
+        let lines: Vec<&str> = source.lines().collect();
+        // The test module: from `#[cfg(test)]` followed by a `mod ... {` to the end.
+        let tests_start = lines
+            .windows(2)
+            .position(|w| w[0].trim() == "#[cfg(test)]" && w[1].trim().starts_with("mod "))
+            .unwrap_or(lines.len());
+        for (line, code) in code_lines(source).take(tests_start) {
+            if let Some(item) = IO_ONLY.iter().find(|item| names_item(&code, item)) {
+                found.push(format!(
+                    "{}:{line}: `{item}` outside src/io/: {}",
+                    path.display(),
+                    code.trim()
+                ));
+            }
+        }
+    }
+    found
+}
+
+#[test]
+fn every_file_access_and_print_goes_through_rtr_io() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut files = Vec::new();
+    // The library, the command-line tool and the examples users run.
+    rust_files(&root.join("src"), root, &mut files);
+    rust_files(&root.join("examples"), root, &mut files);
+    let found = io_outside_io(&files);
+    assert!(
+        found.is_empty(),
+        "I/O outside src/io/:\n{}",
+        found.join("\n")
+    );
+}
+
+#[test]
+fn io_outside_io_is_reported_with_its_file_and_line() {
+    let file = |path: &str, source: &str| (PathBuf::from(path), source.to_string());
+    let files = [
+        file(
+            "src/eval/write.rs",
+            "use std::fs;\nlet s = \"std::fs\"; // std::fs\neprintln!(\"x\");\n\
+             crate::outln!(\"x\")?;\nDynamicsFile::load(p);\n#[cfg(test)]\nmod tests {\n    std::fs::write(p, b);\n}\n",
+        ),
+        file("src/io/output.rs", "std::fs::write(p, b);\n"),
+        file("src/map/mod.rs", "#[cfg(test)]\nmod test_maps;\n"),
+        file("src/map/test_maps.rs", "std::fs::read(p);\n"),
+    ];
+    let found = io_outside_io(&files);
+    assert_eq!(found.len(), 2, "{found:#?}");
+    assert!(found[0].starts_with("src/eval/write.rs:1:"), "{found:#?}");
+    assert!(found[1].starts_with("src/eval/write.rs:3:"), "{found:#?}");
 }

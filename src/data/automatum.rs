@@ -80,7 +80,7 @@ struct RawObject {
 
 /// Computes the sha256 of a file as lowercase hex.
 pub fn sha256_file(path: &Path) -> Result<String> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::io::read_bytes(path, crate::io::Format::Automatum)?;
     Ok(sha256_hex(&bytes))
 }
 
@@ -95,7 +95,7 @@ pub fn sha256_hex(bytes: &[u8]) -> String {
 /// Loads a recording. With `expected_sha256`, the file is first checked against it (the
 /// shipped data must be the published bytes); pass `None` for other recordings.
 pub fn load_recording(path: &Path, expected_sha256: Option<&str>) -> Result<Recording> {
-    let compressed = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let compressed = crate::io::read_bytes(path, crate::io::Format::Automatum)?;
     if let Some(expected) = expected_sha256 {
         let actual = sha256_hex(&compressed);
         if actual != expected {
@@ -108,7 +108,10 @@ pub fn load_recording(path: &Path, expected_sha256: Option<&str>) -> Result<Reco
     }
     let source = path.display().to_string();
     let mut decoder = GzipErrors {
-        inner: flate2::read::GzDecoder::new(compressed.as_slice()),
+        inner: crate::io::capped(
+            flate2::read::GzDecoder::new(compressed.as_slice()),
+            crate::io::Format::Automatum,
+        ),
         error: None,
     };
     let parsed = serde_json::from_reader::<_, RawFile>(std::io::BufReader::with_capacity(
@@ -118,6 +121,9 @@ pub fn load_recording(path: &Path, expected_sha256: Option<&str>) -> Result<Reco
     // A gzip failure surfaces inside serde as an I/O error; report the gzip one, which says
     // what is actually wrong with the file.
     if let Some(gzip_error) = decoder.error.take() {
+        if gzip_error.kind() == std::io::ErrorKind::FileTooLarge {
+            return Err(crate::io::read_error(path, gzip_error));
+        }
         return Err(Error::invalid(
             &source,
             "gzip stream",

@@ -163,7 +163,7 @@ pub struct Recordings {
 impl Recordings {
     /// Reads and parses a recordings CSV file.
     pub fn load(path: &Path) -> Result<Self> {
-        let text = crate::io::read_text(path)?;
+        let text = crate::io::read_text(path, crate::io::Format::Recordings)?;
         Self::parse(&path.display().to_string(), &text)
     }
 

@@ -10,7 +10,7 @@ use crate::error::{Error, Result};
 /// Reads the ids of `path`, in file order. A repeated id or a file with no id is an error
 /// naming the file (and the line).
 pub fn read_scene_list(path: &Path) -> Result<Vec<String>> {
-    let text = crate::io::read_text(path)?;
+    let text = crate::io::read_text(path, crate::io::Format::SceneList)?;
     parse_scene_list(&text, &path.display().to_string())
 }
 

@@ -64,7 +64,7 @@ pub fn write_averaged_policy(
     let sources = policies
         .iter()
         .map(|p| {
-            let bytes = std::fs::read(&p.path).map_err(|e| Error::io(&p.path, e))?;
+            let bytes = crate::io::read_bytes(&p.path, crate::io::Format::Parameters)?;
             Ok(Source {
                 policy: p.path.clone(),
                 sha256: sha256_hex(&bytes),
@@ -92,7 +92,7 @@ pub fn write_averaged_policy(
 /// The first source's run config as written, except that a dynamics file named relative to
 /// its folder is named as loaded (the averaged folder lies elsewhere).
 fn config_for(policy: &TrainedPolicy) -> Result<String> {
-    let text = crate::io::read_text(&policy.config_path)?;
+    let text = crate::io::read_text(&policy.config_path, crate::io::Format::Settings)?;
     let Some(dynamics) = &policy.config.dynamics else {
         return Ok(text);
     };

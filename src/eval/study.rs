@@ -161,7 +161,7 @@ pub fn write_study(
     sets: &[EvalScenes],
     device: &burn::prelude::Device,
 ) -> Result<Vec<PathBuf>> {
-    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    crate::io::create_folder(dir)?;
     let mut written = Vec::new();
     let json = serde_json::to_string_pretty(&results_json(results))
         .map_err(|e| Error::InvalidArgument(format!("results do not serialise: {e}")))?;
@@ -177,7 +177,7 @@ pub fn write_study(
     atomic_write(&dir.join("table.md"), table.as_bytes())?;
     written.push(dir.join("table.md"));
     let figures = dir.join("figures");
-    std::fs::create_dir_all(&figures).map_err(|e| Error::io(&figures, e))?;
+    crate::io::create_folder(&figures)?;
     for realism in [Metric::FdeM, Metric::Jsd(super::features::Feature::Speed)] {
         written.extend(plots::pareto(&figures, results, realism)?);
     }

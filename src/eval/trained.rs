@@ -72,7 +72,7 @@ impl TrainedPolicy {
     /// Loads the policy at `path` onto `device` (a plain, non-autodiff device).
     pub fn load(path: &Path, device: &burn::prelude::Device) -> Result<Self> {
         let (policy_path, config_path) = locate(path)?;
-        let text = crate::io::read_text(&config_path)?;
+        let text = crate::io::read_text(&config_path, crate::io::Format::Settings)?;
         let mut config = TrainConfig::from_toml_str(&text, &config_path.display().to_string())?;
         // Evaluation needs neither the frozen KL reference nor the training data.
         config.reference = None;

@@ -33,21 +33,15 @@ impl StagedFolder {
             Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
             _ => PathBuf::from("."),
         };
-        let name = target
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_else(|| "out".into());
         let created = create_missing(&parent)?;
         let staged = Self {
             target: target.to_path_buf(),
-            staging: parent.join(format!(".{name}.staging.{}", std::process::id())),
+            staging: super::output::temp_name(&parent, "staging", None),
             created,
             committed: false,
         };
-        if staged.staging.exists() {
-            // A leftover of a killed run with the same process id.
-            std::fs::remove_dir_all(&staged.staging).map_err(|e| Error::io(&staged.staging, e))?;
-        }
+        // A leftover of a killed run with the same process id.
+        super::remove_folder(&staged.staging)?;
         std::fs::create_dir(&staged.staging).map_err(|e| Error::io(&staged.staging, e))?;
         Ok(staged)
     }

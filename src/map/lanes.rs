@@ -224,7 +224,7 @@ impl Map {
     }
 
     pub fn from_xodr_file(path: &Path) -> Result<Map> {
-        let text = crate::io::read_text(path)?;
+        let text = crate::io::read_text(path, crate::io::Format::OpenDrive)?;
         Map::from_xodr_str(&text, &path.display().to_string())
     }
 

@@ -341,7 +341,7 @@ fn queries_are_fast() {
         on += usize::from(map.box_on_road(&b) == BoxOnRoad::OnRoad);
     }
     let per_box = start.elapsed().as_secs_f64() / n as f64;
-    eprintln!("box_on_road: {:.1} us per box on the A9 map", per_box * 1e6);
+    crate::errln!("box_on_road: {:.1} us per box on the A9 map", per_box * 1e6);
     assert!(on > n / 3);
     // ~30 outline points each; generous bound for unoptimised test builds.
     assert!(per_box < 2e-3, "{per_box} s per box");

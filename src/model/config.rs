@@ -161,7 +161,7 @@ impl ModelConfig {
 
     /// Reads a TOML file; missing fields take the defaults.
     pub fn from_toml_file(path: &Path) -> Result<Self> {
-        let text = crate::io::read_text(path)?;
+        let text = crate::io::read_text(path, crate::io::Format::Settings)?;
         Self::from_toml_str(&text, &path.display().to_string())
     }
 

@@ -168,7 +168,7 @@ fn write_gif(
     delay: u16,
     frame: impl Fn(usize) -> Result<Vec<u8>>,
 ) -> Result<()> {
-    let file = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
+    let file = crate::io::create_file(path)?;
     let fail = |e| gif_failed(path, e);
     let writer = std::io::BufWriter::new(file);
     let mut encoder = gif::Encoder::new(writer, w, h, &palette.rgb()).map_err(fail)?;

@@ -62,9 +62,7 @@ pub fn load_families(dir: &Path) -> Result<Vec<LogicalScenario>> {
 }
 
 fn collect_toml(dir: &Path, out: &mut Vec<PathBuf>) -> Result<()> {
-    let entries = std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?;
-    for entry in entries {
-        let path = entry.map_err(|e| Error::io(dir, e))?.path();
+    for path in crate::io::list_folder(dir)? {
         if path.is_dir() {
             collect_toml(&path, out)?;
         } else if path.extension().is_some_and(|e| e == "toml") {
@@ -251,12 +249,10 @@ pub fn generate_sets(
 
 /// Every `*.json` scenario in `dir`, in file-name order.
 pub fn load_scenario_dir(dir: &Path) -> Result<Vec<ConcreteScenario>> {
-    let mut paths: Vec<_> = std::fs::read_dir(dir)
-        .map_err(|e| Error::io(dir, e))?
-        .filter_map(|entry| entry.ok().map(|e| e.path()))
+    let paths: Vec<_> = crate::io::list_folder(dir)?
+        .into_iter()
         .filter(|p| p.extension().is_some_and(|e| e == "json"))
         .collect();
-    paths.sort();
     paths
         .iter()
         .map(|p| ConcreteScenario::from_json_file(p))

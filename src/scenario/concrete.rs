@@ -232,7 +232,7 @@ impl ConcreteScenario {
     }
 
     pub fn from_json_file(path: &Path) -> Result<Self> {
-        let text = crate::io::read_text(path)?;
+        let text = crate::io::read_text(path, crate::io::Format::Scenario)?;
         Self::from_json_str(&text, &path.display().to_string())
     }
 

@@ -174,7 +174,7 @@ impl LogicalScenario {
     }
 
     pub fn from_toml_file(path: &Path) -> Result<Self> {
-        let text = crate::io::read_text(path)?;
+        let text = crate::io::read_text(path, crate::io::Format::Settings)?;
         Self::from_toml_str(&text, &path.display().to_string())
     }
 

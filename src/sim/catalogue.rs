@@ -201,7 +201,7 @@ const MAX_COEFFICIENT: f64 = 1e3;
 
 impl DynamicsFile {
     pub fn load(path: &std::path::Path) -> Result<Self> {
-        let text = crate::io::read_text(path)?;
+        let text = crate::io::read_text(path, crate::io::Format::Settings)?;
         let file: DynamicsFile = crate::io::parse_toml(&text, &path.display().to_string())?;
         file.validate(&path.display().to_string())?;
         Ok(file)

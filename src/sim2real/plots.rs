@@ -24,7 +24,7 @@ pub const PLOT_FILES: [&str; 4] = ["regimes.svg", "excess.svg", "hypotheses.svg"
 /// Writes `regimes.svg`, `excess.svg`, `hypotheses.svg` and `tracks.svg` into `dir`;
 /// returns their paths.
 pub fn write_plots(dir: &Path, outcome: &Outcome) -> Result<Vec<PathBuf>> {
-    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    crate::io::create_folder(dir)?;
     let report = &outcome.report;
     let [regimes, excess, hypotheses, tracks] = PLOT_FILES.map(|name| dir.join(name));
     crate::io::atomic_write_with(&regimes, |tmp| {

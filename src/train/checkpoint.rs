@@ -101,9 +101,10 @@ fn load_error(path: &Path, message: &str) -> Error {
 }
 
 fn read_bytes(path: &Path) -> Result<Bytes> {
-    Ok(Bytes::from_bytes_vec(
-        std::fs::read(path).map_err(|e| Error::io(path, e))?,
-    ))
+    Ok(Bytes::from_bytes_vec(crate::io::read_bytes(
+        path,
+        crate::io::Format::Parameters,
+    )?))
 }
 
 /// A module's parameters as burnpack bytes (what `policy.bpk` holds); `path` names it in errors.
@@ -189,16 +190,18 @@ pub fn load_policy(
 /// The folder of the newest checkpoint under `run_dir`, if any.
 pub fn latest(run_dir: &Path) -> Result<Option<PathBuf>> {
     let pointer = run_dir.join("checkpoints").join(LATEST);
-    match std::fs::read_to_string(&pointer) {
-        Ok(name) if name.trim().is_empty() => Err(Error::invalid(
+    if pointer.symlink_metadata().is_err() {
+        return Ok(None);
+    }
+    let name = crate::io::read_text(&pointer, crate::io::Format::Settings)?;
+    if name.trim().is_empty() {
+        return Err(Error::invalid(
             pointer.display().to_string(),
             "contents",
             "empty; expected the name of the newest checkpoint folder (iter-NNNNNN)",
-        )),
-        Ok(name) => Ok(Some(run_dir.join("checkpoints").join(name.trim()))),
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
-        Err(e) => Err(Error::io(pointer, e)),
+        ));
     }
+    Ok(Some(run_dir.join("checkpoints").join(name.trim())))
 }
 
 /// The checkpoint a run in `run_dir` starts from: with `resume` the newest one, which must
@@ -242,9 +245,8 @@ pub fn save(
     let root = run_dir.join("checkpoints");
     let name = format!("iter-{:06}", state.iteration);
     let dir = root.join(&name);
-    let tmp = root.join(format!(".{name}.tmp.{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&tmp);
-    std::fs::create_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
+    let tmp = crate::io::temp_name(&root, "checkpoint", None);
+    crate::io::create_folder(&tmp)?;
     let optimizer_bytes = |o: &ModuleOptimizer, path: &Path| -> Result<Vec<u8>> {
         Ok(o.into_bytes().map_err(|e| record_error(path, e))?.to_vec())
     };
@@ -270,12 +272,11 @@ pub fn save(
     let state_bytes =
         serde_json::to_vec_pretty(&state).map_err(|e| record_error(&tmp.join(STATE), e))?;
     for (file, bytes) in tensors.iter().chain([&(STATE, state_bytes)]) {
-        let path = tmp.join(file);
-        std::fs::write(&path, bytes).map_err(|e| Error::io(&path, e))?;
+        crate::io::write_new(&tmp.join(file), bytes)?;
     }
     // A re-run of the same iteration (after a resume) replaces the old folder.
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::rename(&tmp, &dir).map_err(|e| Error::io(&dir, e))?;
+    crate::io::remove_folder(&dir)?;
+    crate::io::rename(&tmp, &dir)?;
     atomic_write(&root.join(LATEST), name.as_bytes())?;
     prune(&root, &name, keep)?;
     Ok(dir)
@@ -283,17 +284,14 @@ pub fn save(
 
 /// Deletes all but the newest `keep + 1` checkpoint folders (never `newest`).
 fn prune(root: &Path, newest: &str, keep: usize) -> Result<()> {
-    let mut names: Vec<String> = std::fs::read_dir(root)
-        .map_err(|e| Error::io(root, e))?
-        .filter_map(|e| e.ok())
-        .map(|e| e.file_name().to_string_lossy().into_owned())
+    let names: Vec<String> = crate::io::list_folder(root)?
+        .iter()
+        .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
         .filter(|n| n.starts_with("iter-") && n.as_str() != newest)
         .collect();
-    names.sort();
     let excess = names.len().saturating_sub(keep);
     for name in &names[..excess] {
-        let path = root.join(name);
-        std::fs::remove_dir_all(&path).map_err(|e| Error::io(&path, e))?;
+        crate::io::remove_folder(&root.join(name))?;
     }
     Ok(())
 }
@@ -309,7 +307,10 @@ fn verify_checksums(dir: &Path, state: &LoopState) -> Result<()> {
             ));
         }
         let path = dir.join(file);
-        let actual = sha256_hex(&std::fs::read(&path).map_err(|e| Error::io(&path, e))?);
+        let actual = sha256_hex(&crate::io::read_bytes(
+            &path,
+            crate::io::Format::Parameters,
+        )?);
         if &actual != expected {
             return Err(Error::invalid(
                 path.display().to_string(),
@@ -334,7 +335,7 @@ pub fn load(
     value_optimizer: ModuleOptimizer,
 ) -> Result<Checkpoint> {
     let state_path = dir.join(STATE);
-    let state_text = std::fs::read(&state_path).map_err(|e| Error::io(&state_path, e))?;
+    let state_text = crate::io::read_bytes(&state_path, crate::io::Format::Settings)?;
     let state: LoopState =
         serde_json::from_slice(&state_text).map_err(|e| record_error(&state_path, e))?;
     verify_checksums(dir, &state)?;

@@ -604,7 +604,7 @@ impl TrainConfig {
     /// Reads and validates a run file; a relative reference checkpoint is resolved against the
     /// file's folder.
     pub fn from_toml_file(path: &Path) -> Result<Self> {
-        let text = crate::io::read_text(path)?;
+        let text = crate::io::read_text(path, crate::io::Format::Settings)?;
         let mut config = Self::from_toml_str(&text, &path.display().to_string())?;
         if let Some(checkpoint) = config
             .reference

@@ -174,7 +174,7 @@ fn std_from_logs(
     let scenes: Vec<&crate::scene::Scene> = recorded.into_iter().step_by(stride).collect();
     let (std, count) =
         super::imitation::logged_action_rms(&policy, &scenes, &config.limits, 16, device)?;
-    eprintln!(
+    crate::errln!(
         "{what}: sigma from the logs = {:.4} m/s^2, {:.5} rad (RMS error of its mean over \
          {count} logged agent-steps of {} scenes)",
         std[0],
@@ -182,9 +182,10 @@ fn std_from_logs(
         scenes.len()
     );
     if scale != [1.0, 1.0] {
-        eprintln!(
+        crate::errln!(
             "{what}: sigma scaled by [{}, {}] (init.std_scale)",
-            scale[0], scale[1]
+            scale[0],
+            scale[1]
         );
     }
     let scaled = [std[0] * scale[0], std[1] * scale[1]];
@@ -295,7 +296,7 @@ impl<'d> Trainer<'d> {
         };
         // Everything that can refuse the run is loaded before the run folder is written.
         let dynamics = config.dynamics(&main.clone().inner())?;
-        std::fs::create_dir_all(run_dir).map_err(|e| Error::io(run_dir, e))?;
+        crate::io::create_folder(run_dir)?;
         crate::io::atomic_write(&run_dir.join("config.toml"), state.config_toml.as_bytes())?;
         let curves_path = run_dir.join("curves.csv");
         let curves = if resume {
@@ -391,8 +392,10 @@ impl<'d> Trainer<'d> {
         };
         if self.state.iteration == total {
             // The finished policy at a stable path (for `[reference]`, evaluation, models/).
-            let bytes = std::fs::read(checkpoint.join("policy.bpk"))
-                .map_err(|e| Error::io(checkpoint.join("policy.bpk"), e))?;
+            let bytes = crate::io::read_bytes(
+                &checkpoint.join("policy.bpk"),
+                crate::io::Format::Parameters,
+            )?;
             crate::io::atomic_write(&self.run_dir.join("policy.bpk"), &bytes)?;
         }
         Ok(TrainSummary {

@@ -97,14 +97,14 @@ fn main() -> ExitCode {
     match run(parse_cli()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e}");
+            rtr::errln!("error: {e}");
             let mut shown = e.to_string();
             let mut source = std::error::Error::source(&e);
             while let Some(cause) = source {
                 // Variants that wrap a cause already print it in their own message.
                 let text = cause.to_string();
                 if !shown.contains(&text) {
-                    eprintln!("  caused by: {text}");
+                    rtr::errln!("  caused by: {text}");
                     shown.push_str(&text);
                 }
                 source = cause.source();

@@ -145,15 +145,13 @@ pub fn commonroad_files(path: &Path) -> Result<Vec<PathBuf>> {
         }
         return Ok(vec![path.to_path_buf()]);
     }
-    let mut files: Vec<PathBuf> = std::fs::read_dir(path)
-        .map_err(|e| Error::io(path, e))?
-        .filter_map(|entry| entry.ok().map(|e| e.path()))
+    let files: Vec<PathBuf> = crate::io::list_folder(path)?
+        .into_iter()
         .filter(|p| {
             let name = p.file_name().and_then(|n| n.to_str()).unwrap_or("");
             p.is_file() && (name.ends_with(".xml") || name.ends_with(".xml.gz"))
         })
         .collect();
-    files.sort();
     if files.is_empty() {
         return Err(Error::invalid(
             path.display().to_string(),
@@ -295,13 +293,20 @@ pub fn describe_clips(summaries: &[ClipSummary]) -> String {
 }
 
 fn read_text(path: &Path) -> Result<String> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    use crate::io::Format;
+    let bytes = crate::io::read_bytes(path, Format::CommonRoad)?;
     let source = path.display().to_string();
     let bytes = if bytes.starts_with(&[0x1f, 0x8b]) {
         let mut out = Vec::new();
-        flate2::read::GzDecoder::new(bytes.as_slice())
-            .read_to_end(&mut out)
-            .map_err(|e| Error::invalid(&source, "gzip stream", e.to_string()))?;
+        crate::io::capped(
+            flate2::read::GzDecoder::new(bytes.as_slice()),
+            Format::CommonRoad,
+        )
+        .read_to_end(&mut out)
+        .map_err(|e| match e.kind() {
+            std::io::ErrorKind::FileTooLarge => crate::io::read_error(path, e),
+            _ => Error::invalid(&source, "gzip stream", e.to_string()),
+        })?;
         out
     } else {
         bytes

@@ -225,7 +225,7 @@ fn trained_task(
     let config = probe_config(settings)?;
     let (dir, temporary) = run_dir(task, settings);
     if temporary {
-        let _ = std::fs::remove_dir_all(&dir);
+        let _ = crate::io::remove_folder(&dir);
     }
     let devices = super::session::devices(&config)?;
     let plain = devices[0].clone().inner();
@@ -253,7 +253,7 @@ fn trained_task(
     });
     let agent_steps = collected_agent_steps(trainer.curves());
     if temporary {
-        let _ = std::fs::remove_dir_all(&dir);
+        let _ = crate::io::remove_folder(&dir);
     }
     let (infraction_after, reward_after) = after?;
     progress(&format!(
@@ -302,7 +302,7 @@ fn credit_task(settings: &ProbeSettings, data: &TaskData) -> Result<TaskReport> 
         c
     })?;
     let scratch = std::env::temp_dir().join(format!("rtr-probe-credit-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&scratch);
+    let _ = crate::io::remove_folder(&scratch);
     let devices = super::session::devices(&config)?;
     let plain = devices[0].clone().inner();
     let trained = Trainer::new(config.clone(), &data.training, devices, &scratch, false).and_then(
@@ -311,7 +311,7 @@ fn credit_task(settings: &ProbeSettings, data: &TaskData) -> Result<TaskReport> 
             Ok(trainer)
         },
     );
-    let _ = std::fs::remove_dir_all(&scratch);
+    let _ = crate::io::remove_folder(&scratch);
     let trainer = trained?;
     let (policy, value) = (trainer.policy().valid(), trainer.value().valid());
     let (infractions, reward) = measure(&policy, &value, &config, data, &plain)?;

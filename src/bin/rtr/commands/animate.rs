@@ -69,7 +69,7 @@ pub fn run(args: &RenderArgs) -> Result<()> {
         ..opts
     };
     let summary = animate_scene(&watched.scene, &watched.infractions, &args.out, &opts, fps)?;
-    println!(
+    rtr::outln!(
         "wrote {}: {} frames of {} x {} px at {fps} fps ({} history steps, the current step, \
          then {} steps of {} s)",
         args.out.display(),
@@ -79,8 +79,8 @@ pub fn run(args: &RenderArgs) -> Result<()> {
         log.history_steps,
         log.future_steps,
         log.dt
-    );
-    describe(&watched, driver.as_ref().map(|d| d.name.as_str()));
+    )?;
+    describe(&watched, driver.as_ref().map(|d| d.name.as_str()))?;
     Ok(())
 }
 
@@ -101,6 +101,7 @@ fn load_driver(args: &RenderArgs) -> Result<Option<Driver>> {
     let device = args.backend.device(false)?;
     let (name, entry) = match &args.checkpoint {
         Some(path) => {
+            rtr::io::check_input_path(path, "--checkpoint")?;
             let trained = TrainedPolicy::load(path, &device)?;
             let name = format!("{} ({})", trained.method, path.display());
             (name, Entry::Trained(Box::new(trained)))
@@ -122,7 +123,7 @@ fn parts(entry: &Entry) -> (&dyn EvalPolicy, &Dynamics) {
 }
 
 /// The legend, and one line per infraction.
-fn describe(watched: &WatchedRollout, driver: Option<&str>) {
+fn describe(watched: &WatchedRollout, driver: Option<&str>) -> Result<()> {
     let scene = &watched.scene;
     let who = match driver {
         Some(name) => format!("{name} drives the {} blue agents", scene.controlled_count()),
@@ -131,20 +132,21 @@ fn describe(watched: &WatchedRollout, driver: Option<&str>) {
             scene.controlled_count()
         ),
     };
-    println!(
+    rtr::outln!(
         "scene {}: {who}; orange: replayed from the log; red: heroes; magenta outline: a car \
          from its first collision or off-road step on; bottom bar: time (grey history, blue \
          rollout)",
         scene.id
-    );
+    )?;
     for f in &watched.infractions {
         let agent = &scene.agents[f.agent];
         let seconds = (f.step - scene.current_step()) as f64 * scene.dt;
-        println!(
+        rtr::outln!(
             "  {}: agent {} (track {}) at +{seconds:.1} s",
             f.kind.name(),
             f.agent,
             agent.track_id
-        );
+        )?;
     }
+    Ok(())
 }

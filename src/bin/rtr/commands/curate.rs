@@ -32,6 +32,7 @@ pub struct CurateArgs {
 }
 
 pub fn run(args: CurateArgs) -> Result<()> {
+    rtr::io::check_input_path(&args.checkpoint, "--checkpoint")?;
     check_output(&args.out, OutputKind::File, "--out")?;
     let device = args.backend.device(false)?;
     let trained = TrainedPolicy::load(&args.checkpoint, &device)?;
@@ -73,12 +74,12 @@ pub fn run(args: CurateArgs) -> Result<()> {
     );
     let ids: Vec<String> = failed.iter().map(|o| o.id.clone()).collect();
     rtr::data::write_scene_list(&args.out, &header, &ids)?;
-    println!(
+    rtr::outln!(
         "{}: {} of {} training scenes failed; list written to {}",
         trained.method,
         failed.len(),
         outcomes.len(),
         args.out.display()
-    );
+    )?;
     Ok(())
 }

@@ -41,9 +41,9 @@ pub fn run(command: DataCommand) -> Result<()> {
         if json {
             let text = serde_json::to_string_pretty(&summaries)
                 .map_err(|e| Error::InvalidArgument(format!("cannot encode summary: {e}")))?;
-            println!("{text}");
+            rtr::outln!("{text}")?;
         } else {
-            print!("{}", commonroad::describe_clips(&summaries));
+            rtr::out!("{}", commonroad::describe_clips(&summaries))?;
         }
         return Ok(());
     }
@@ -52,13 +52,13 @@ pub fn run(command: DataCommand) -> Result<()> {
     if json {
         let text = serde_json::to_string_pretty(&summary)
             .map_err(|e| Error::InvalidArgument(format!("cannot encode summary: {e}")))?;
-        println!("{text}");
+        rtr::outln!("{text}")?;
     } else {
         let value = serde_json::to_value(&summary)
             .map_err(|e| Error::InvalidArgument(format!("cannot encode summary: {e}")))?;
         if let Some(fields) = value.as_object() {
             for (key, v) in fields {
-                println!("{key:<26} {v}");
+                rtr::outln!("{key:<26} {v}")?;
             }
         }
     }

@@ -81,7 +81,7 @@ pub fn run(args: DownstreamArgs) -> Result<()> {
     )?;
     progress.finish_and_clear();
     let table = downstream_table(&rows);
-    print!("{table}");
+    // The files first (together), then stdout: a reader that goes away must not cost them.
     if let Some(out) = &args.out {
         let json = serde_json::json!({
             "config": config,
@@ -92,9 +92,14 @@ pub fn run(args: DownstreamArgs) -> Result<()> {
         });
         let text = serde_json::to_string_pretty(&json)
             .map_err(|e| Error::InvalidArgument(format!("results.json: {e}")))?;
-        rtr::io::atomic_write(&out.join("results.json"), text.as_bytes())?;
-        rtr::io::atomic_write(&out.join("table.md"), table.as_bytes())?;
-        println!("wrote {}/results.json and table.md", out.display());
+        let staged = rtr::io::StagedFolder::new(out)?;
+        rtr::io::atomic_write(&staged.path().join("results.json"), text.as_bytes())?;
+        rtr::io::atomic_write(&staged.path().join("table.md"), table.as_bytes())?;
+        staged.commit()?;
+    }
+    rtr::out!("{table}")?;
+    if let Some(out) = &args.out {
+        rtr::outln!("wrote {}/results.json and table.md", out.display())?;
     }
     Ok(())
 }

@@ -70,6 +70,9 @@ pub fn run(args: EvalArgs) -> Result<()> {
             "nothing to evaluate: pass --checkpoint DIR (repeatable) and/or --idm".into(),
         ));
     }
+    for path in &args.checkpoints {
+        rtr::io::check_input_path(path, "--checkpoint")?;
+    }
     if let Some(out) = &args.out {
         check_output(out, OutputKind::Folder, "--out")?;
     }
@@ -106,7 +109,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
             && t.path != *path
             && t.path.parent() != Some(path.as_path())
         {
-            eprintln!(
+            rtr::errln!(
                 "{}: the run is not finished; evaluating its newest checkpoint, {checkpoint}",
                 path.display()
             );
@@ -151,7 +154,8 @@ pub fn run(args: EvalArgs) -> Result<()> {
     );
     let results = evaluate_entries(&entries, &scenes, &device, &config, &progress)?;
     progress.finish_and_clear();
-    print!("{}", markdown_table(&results, &sets));
+    // The files first: a reader of stdout that goes away (`| head`) must not cost them.
+    let mut wrote = None;
     if let Some(out) = &args.out {
         // Tables and figures land together or not at all (a figure that fails leaves no table).
         let staged = StagedFolder::new(out)?;
@@ -164,7 +168,15 @@ pub fn run(args: EvalArgs) -> Result<()> {
             written.push(path);
         }
         staged.commit()?;
-        println!("wrote {} files to {}", written.len(), out.display());
+        wrote = Some(format!(
+            "wrote {} files to {}",
+            written.len(),
+            out.display()
+        ));
+    }
+    rtr::out!("{}", markdown_table(&results, &sets))?;
+    if let Some(line) = wrote {
+        rtr::outln!("{line}")?;
     }
     Ok(())
 }
@@ -180,7 +192,7 @@ fn commonroad_set(
     }
     let clips = commonroad::load_commonroad(paths, speed_limit)?;
     let (scenes, summaries) = commonroad::commonroad_scenes(&clips, &SceneConfig::default())?;
-    eprint!("{}", commonroad::describe_clips(&summaries));
+    rtr::io::console::write_stderr(&commonroad::describe_clips(&summaries));
     if scenes.is_empty() {
         return Err(Error::InvalidArgument(
             "the CommonRoad files yield no scene (each file's reason is printed above)".into(),

@@ -50,7 +50,7 @@ pub fn run(command: MapCommand) -> Result<()> {
                 "lane_graph_nodes": graph.nodes.len(),
                 "bounds_m": map.bounds(),
             });
-            println!("{summary:#}");
+            rtr::outln!("{summary:#}")?;
             Ok(())
         }
         MapCommand::Render { source, out, width } => {
@@ -62,7 +62,7 @@ pub fn run(command: MapCommand) -> Result<()> {
             let map = source.load()?;
             for path in targets {
                 render_map(&map, &path, &opts)?;
-                println!("wrote {}", path.display());
+                rtr::outln!("wrote {}", path.display())?;
             }
             Ok(())
         }
@@ -73,7 +73,7 @@ pub fn run(command: MapCommand) -> Result<()> {
                 Error::InvalidArgument(format!("{} is not an OpenDRIVE map", map.source()))
             })?;
             rtr::io::atomic_write(&out, to_xodr(od).as_bytes())?;
-            println!("wrote {}", out.display());
+            rtr::outln!("wrote {}", out.display())?;
             Ok(())
         }
     }

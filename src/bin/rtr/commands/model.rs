@@ -48,14 +48,17 @@ pub fn run(command: ModelCommand) -> Result<()> {
 }
 
 fn average(checkpoints: &[PathBuf], out: &std::path::Path) -> Result<()> {
+    for path in checkpoints {
+        rtr::io::check_input_path(path, "--checkpoint")?;
+    }
     let device = Backend::NdArray.device(false)?;
     let report = rtr::eval::averaged::write_averaged_policy(checkpoints, out, &device)?;
-    println!(
+    rtr::outln!(
         "{}: the mean of {} {} checkpoints",
         out.display(),
         report.sources.len(),
         report.method
-    );
+    )?;
     Ok(())
 }
 
@@ -76,13 +79,13 @@ fn info(config: Option<PathBuf>, small: bool, json: bool) -> Result<()> {
             "value": value,
             "params": policy.total + value.total,
         });
-        println!("{report:#}");
+        rtr::outln!("{report:#}")?;
         return Ok(());
     }
     let text = toml::to_string(&config)
         .map_err(|e| Error::InvalidArgument(format!("cannot encode config: {e}")))?;
-    println!("# model config\n{text}");
-    println!("{:<22} {:>12} {:>12}", "parameters", "policy", "value");
+    rtr::outln!("# model config\n{text}")?;
+    rtr::outln!("{:<22} {:>12} {:>12}", "parameters", "policy", "value")?;
     let rows = [
         (
             "history encoder",
@@ -99,8 +102,8 @@ fn info(config: Option<PathBuf>, small: bool, json: bool) -> Result<()> {
         ("total", policy.total, value.total),
     ];
     for (name, p, v) in rows {
-        println!("{name:<22} {p:>12} {v:>12}");
+        rtr::outln!("{name:<22} {p:>12} {v:>12}")?;
     }
-    println!("policy + value: {}", policy.total + value.total);
+    rtr::outln!("policy + value: {}", policy.total + value.total)?;
     Ok(())
 }

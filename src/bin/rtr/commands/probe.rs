@@ -81,12 +81,12 @@ pub fn run(command: ProbeCommand) -> Result<()> {
         out: args.out.clone(),
     };
     let dataset = args.data.load()?;
-    let reports = run_probes(&tasks, &settings, &dataset, &|line| eprintln!("{line}"))?;
+    let reports = run_probes(&tasks, &settings, &dataset, &|line| rtr::errln!("{line}"))?;
     if args.json {
         let json = serde_json::json!({ "tasks": reports });
-        println!("{json}");
+        rtr::outln!("{json}")?;
     } else {
-        println!("{}", table(&reports));
+        rtr::outln!("{}", table(&reports))?;
     }
     Ok(())
 }

@@ -60,7 +60,7 @@ pub fn run(command: RecordingsCommand) -> Result<()> {
     let device = rtr::backend::Backend::NdArray.device(false)?;
     let recordings = generate(&config, &device);
     recordings.save(&out)?;
-    println!(
+    rtr::outln!(
         "{} tracks of {} s at {} Hz{} -> {}",
         tracks,
         config.duration_s,
@@ -71,6 +71,6 @@ pub fn run(command: RecordingsCommand) -> Result<()> {
             (None, None) => ", no concealed effect".into(),
         },
         out.display()
-    );
+    )?;
     Ok(())
 }

@@ -88,15 +88,15 @@ pub fn run(args: RenderArgs) -> Result<()> {
     };
     for path in &targets {
         render_scene(&scene, path, &opts)?;
-        println!("wrote {}", path.display());
+        rtr::outln!("wrote {}", path.display())?;
     }
-    println!(
+    rtr::outln!(
         "scene {}: {} agents ({} controlled, blue; replayed, orange); solid line = history, \
          faded line and dots = logged future",
         scene.id,
         scene.agents.len(),
         scene.controlled_count()
-    );
+    )?;
     Ok(())
 }
 
@@ -185,14 +185,14 @@ fn render_scenario(
     };
     for target in targets {
         render_scene(&scene, target, &opts)?;
-        println!("wrote {}", target.display());
+        rtr::outln!("wrote {}", target.display())?;
     }
-    println!(
+    rtr::outln!(
         "scenario {} ({}): {} agents; heroes red, policy-driven agents blue; solid line = history, \
          faded line and dots = the IDM reference run",
         scenario.id(),
         scenario.description,
         scenario.agents.len()
-    );
+    )?;
     Ok(())
 }

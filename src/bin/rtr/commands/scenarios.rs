@@ -46,12 +46,12 @@ pub fn run(command: ScenariosCommand) -> Result<()> {
         ScenariosCommand::List { families } => {
             let families = load_families(&families.unwrap_or_else(builtin_families))?;
             for f in &families {
-                println!(
+                rtr::outln!(
                     "{:<28} {:<5} {}",
                     f.name,
                     format!("{:?}", f.set).to_lowercase(),
                     f.description
-                );
+                )?;
             }
             Ok(())
         }
@@ -94,19 +94,19 @@ pub fn run(command: ScenariosCommand) -> Result<()> {
                     .filter(|s| !s.reference.collided_agents.is_empty())
                     .count();
                 let agents: usize = list.iter().map(|s| s.agents.len()).sum();
-                println!(
+                rtr::outln!(
                     "{:<5} {:>4} scenarios, {:>5} agents; IDM reference: a collision in {collided} ({:.1} %)",
                     set.name(),
                     list.len(),
                     agents,
                     100.0 * collided as f64 / list.len().max(1) as f64
-                );
+                )?;
             }
-            println!(
+            rtr::outln!(
                 "wrote {written} scenarios to {} in {:.1} s (seed {seed})",
                 out.display(),
                 start.elapsed().as_secs_f64()
-            );
+            )?;
             Ok(())
         }
     }
@@ -117,10 +117,10 @@ pub fn run(command: ScenariosCommand) -> Result<()> {
 fn refuse_earlier_sets(out: &std::path::Path) -> Result<()> {
     for set in ScenarioSet::ALL {
         let dir = out.join(set.name());
-        let Ok(mut entries) = std::fs::read_dir(&dir) else {
+        if !dir.is_dir() {
             continue;
-        };
-        if entries.next().is_some() {
+        }
+        if !rtr::io::list_folder(&dir)?.is_empty() {
             return Err(rtr::Error::InvalidArgument(format!(
                 "--out {}: {} already holds files; the loaders read every file there, so an \
                  earlier set would be mixed into this one. Choose a new folder or remove them",

@@ -71,13 +71,13 @@ pub fn run(args: Sim2RealArgs) -> Result<()> {
         ),
     };
     if let Some(fast) = recordings.tracks.iter().find(|t| thinning(t.period) > 1) {
-        println!(
+        rtr::outln!(
             "note: track `{}` is sampled every {:.4} s; tracks faster than 100 Hz are fitted on \
              one sample in {}",
             fast.id,
             fast.period,
             thinning(fast.period)
-        );
+        )?;
     }
     let mut options = Sim2RealOptions {
         horizon_s: args.horizon,
@@ -95,7 +95,7 @@ pub fn run(args: Sim2RealArgs) -> Result<()> {
     progress.finish_and_clear();
     let report = &outcome.report;
     for line in report.summary() {
-        println!("{line}");
+        rtr::outln!("{line}")?;
     }
     // Everything is rendered before anything is written, and written together: a plot that
     // fails leaves no report behind.
@@ -121,16 +121,16 @@ pub fn run(args: Sim2RealArgs) -> Result<()> {
         let written: Vec<_> = written.iter().map(|p| staged.final_path(p)).collect();
         staged.commit()?;
         for path in written {
-            println!("plot: {}", path.display());
+            rtr::outln!("plot: {}", path.display())?;
         }
     }
-    println!("report: {}", args.report.display());
+    rtr::outln!("report: {}", args.report.display())?;
     if let Some(path) = &args.save_dynamics {
-        println!(
+        rtr::outln!(
             "dynamics ({} terms): {}",
             report.dynamics().terms.len(),
             path.display()
-        );
+        )?;
     }
     Ok(())
 }

@@ -84,11 +84,11 @@ pub fn run(args: SweepArgs) -> Result<()> {
     let results = evaluate_points(&points, &dirs, &scenes, &device, &config, &progress)?;
     progress.finish_and_clear();
     write_sweep(&args.out, &results, &scenes)?;
-    print!("{}", rtr::eval::markdown_table(&results, &sets));
-    println!(
+    rtr::out!("{}", rtr::eval::markdown_table(&results, &sets))?;
+    rtr::outln!(
         "wrote {} and {}",
         args.out.join("results.json").display(),
         args.out.join("table.md").display()
-    );
+    )?;
     Ok(())
 }

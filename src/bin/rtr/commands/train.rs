@@ -104,20 +104,20 @@ pub fn run(args: TrainArgs) -> Result<()> {
     })?;
     progress.finish();
     if !out.join("policy.bpk").is_file() {
-        println!(
+        rtr::outln!(
             "stopped after {} of the run's iterations (--stop-after); continue with --resume",
             summary.iterations
-        );
+        )?;
     }
-    println!(
+    rtr::outln!(
         "{method}: {} iterations, {} optimizer steps; checkpoint {}; curves {}",
         summary.iterations,
         summary.updates,
         summary.checkpoint.display(),
         out.join("curves.csv").display()
-    );
+    )?;
     if let Some(last) = summary.last {
-        println!(
+        rtr::outln!(
             "last step: loss {:.5} (IL {:.5}, BC {:.5}, PPO policy {:.5}, value {:.5}, KL {:.5}); \
              rollout collisions {:.1}%, off-road {:.1}%",
             last.loss,
@@ -128,7 +128,7 @@ pub fn run(args: TrainArgs) -> Result<()> {
             last.kl,
             last.collision_pct,
             last.offroad_pct
-        );
+        )?;
     }
     Ok(())
 }
@@ -140,10 +140,10 @@ fn remove_unfinished_run(out: &Path, created: bool) {
         return;
     }
     if created {
-        let _ = std::fs::remove_dir_all(out);
+        let _ = rtr::io::remove_folder(out);
     } else {
         for name in ["config.toml", "curves.csv"] {
-            let _ = std::fs::remove_file(out.join(name));
+            let _ = rtr::io::remove_file(&out.join(name));
         }
     }
 }

@@ -126,7 +126,7 @@ pub fn run(command: BenchCommand) -> Result<()> {
         }
     }
     .map_err(|e| Error::InvalidArgument(format!("cannot encode report: {e}")))?;
-    println!("{report}");
+    rtr::outln!("{report}")?;
     Ok(())
 }
 

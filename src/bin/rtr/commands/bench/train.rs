@@ -141,7 +141,7 @@ pub fn bench_training(
             method.name(),
             std::process::id()
         ));
-        let _ = std::fs::remove_dir_all(&dir);
+        let _ = rtr::io::remove_folder(&dir);
         let mut trainer = Trainer::new(config.clone(), &data, devices(&config)?, &dir, false)?;
         reset_peak_rss();
         let meter = CoreMeter::start();
@@ -150,7 +150,7 @@ pub fn bench_training(
         let seconds = start.elapsed().as_secs_f64();
         let cores_busy = meter.cores_busy();
         let agent_steps = trainer.curves().last().map_or(0, |r| r.ppo_agent_steps);
-        let _ = std::fs::remove_dir_all(&dir);
+        let _ = rtr::io::remove_folder(&dir);
         Ok(Timed {
             seconds,
             agent_steps,

@@ -1,0 +1,284 @@
+//! One way in: every file rtr reads is opened by [`open_regular`] (directly or through
+//! [`read_bytes`] / [`read_text`]), which refuses anything that is not a regular file (a FIFO
+//! would block forever, `/dev/zero` would fill memory) and caps how many bytes are read at
+//! what the file's [`Format`] can plausibly hold.
+
+use std::fs::File;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+use crate::error::{Error, Result};
+
+const MIB: u64 = 1 << 20;
+
+/// What kind of file is read; it sets the cap on how many bytes are read. Each cap is far
+/// above any real file of the kind and far below memory, so a wrong file is refused with a
+/// message instead of exhausting the machine.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    /// A settings file: run files, model configs, scenario families, dynamics files (TOML),
+    /// a checkpoint's loop state (JSON) and its `latest` pointer.
+    Settings,
+    /// A scene list (one id per line).
+    SceneList,
+    /// A concrete scenario (JSON).
+    Scenario,
+    /// An OpenDRIVE road network (XML).
+    OpenDrive,
+    /// A CommonRoad scenario (XML, possibly gzip-compressed; the cap applies to both sizes).
+    CommonRoad,
+    /// An AUTOMATUM recording (gzip-compressed JSON; the cap applies to both sizes).
+    Automatum,
+    /// Vehicle recordings for sim-to-real (CSV).
+    Recordings,
+    /// Network parameters (burnpack) of a model or checkpoint.
+    Parameters,
+}
+
+impl Format {
+    /// The most bytes a file of this format may hold.
+    pub fn limit(self) -> u64 {
+        match self {
+            Format::Settings => 16 * MIB,
+            Format::SceneList | Format::Scenario => 64 * MIB,
+            Format::OpenDrive | Format::CommonRoad => 512 * MIB,
+            Format::Automatum | Format::Recordings => 2048 * MIB,
+            Format::Parameters => 4096 * MIB,
+        }
+    }
+
+    fn name(self) -> &'static str {
+        match self {
+            Format::Settings => "a settings file",
+            Format::SceneList => "a scene list",
+            Format::Scenario => "a scenario file",
+            Format::OpenDrive => "an OpenDRIVE file",
+            Format::CommonRoad => "a CommonRoad file",
+            Format::Automatum => "an AUTOMATUM recording",
+            Format::Recordings => "a recordings file",
+            Format::Parameters => "a parameter file",
+        }
+    }
+}
+
+/// Checks that the input `path` given with `flag` is a regular file, so a folder, a missing
+/// path, a FIFO or a device is refused naming the option (before any work) rather than
+/// blocking, filling memory or failing with the operating system's bare message.
+pub fn check_input_file(path: &Path, flag: &str) -> Result<()> {
+    let why = match path.metadata() {
+        Ok(m) if m.is_file() => return Ok(()),
+        Ok(m) if m.is_dir() => "is a folder; expected a file".to_string(),
+        Ok(m) => format!("is {}; expected a regular file", kind_of(&m)),
+        Err(_) if path.symlink_metadata().is_ok() => {
+            "is a link to nothing (dangling symlink)".to_string()
+        }
+        Err(_) => "no such file".to_string(),
+    };
+    Err(Error::InvalidArgument(format!(
+        "{flag} {}: {why}",
+        path.display()
+    )))
+}
+
+/// Checks that the input `path` given with `flag` is a regular file or a folder (a model or
+/// run folder, a scenario set), refusing a FIFO, a device, a dangling link or a missing path
+/// by the option's name.
+pub fn check_input_path(path: &Path, flag: &str) -> Result<()> {
+    match path.metadata() {
+        Ok(m) if m.is_dir() => Ok(()),
+        _ => check_input_file(path, flag),
+    }
+}
+
+/// Opens `path` for reading if it is a regular file. The open itself cannot block: a FIFO
+/// is opened non-blocking and then refused by its type.
+pub fn open_regular(path: &Path) -> Result<File> {
+    let mut options = std::fs::OpenOptions::new();
+    options.read(true);
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::OpenOptionsExt;
+        options.custom_flags(libc::O_NONBLOCK);
+    }
+    let file = options.open(path).map_err(|e| Error::io(path, e))?;
+    let metadata = file.metadata().map_err(|e| Error::io(path, e))?;
+    if !metadata.is_file() {
+        return Err(Error::invalid(
+            path.display().to_string(),
+            "file",
+            format!("is {}; expected a regular file", kind_of(&metadata)),
+        ));
+    }
+    Ok(file)
+}
+
+/// What a non-regular file is, for messages.
+fn kind_of(metadata: &std::fs::Metadata) -> &'static str {
+    if metadata.is_dir() {
+        return "a folder";
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        let kind = metadata.file_type();
+        if kind.is_fifo() {
+            return "a FIFO (named pipe)";
+        }
+        if kind.is_char_device() || kind.is_block_device() {
+            return "a device";
+        }
+        if kind.is_socket() {
+            return "a socket";
+        }
+    }
+    "not a regular file"
+}
+
+/// The whole of the regular file `path`, refused if larger than `format` allows.
+pub fn read_bytes(path: &Path, format: Format) -> Result<Vec<u8>> {
+    let file = open_regular(path)?;
+    let mut bytes = Vec::new();
+    capped(file, format)
+        .read_to_end(&mut bytes)
+        .map_err(|e| read_error(path, e))?;
+    Ok(bytes)
+}
+
+/// The regular file `path` as text (see [`utf8_text`]), refused if larger than `format`
+/// allows.
+pub fn read_text(path: &Path, format: Format) -> Result<String> {
+    utf8_text(read_bytes(path, format)?, &path.display().to_string())
+}
+
+/// `reader` that fails with [`std::io::ErrorKind::FileTooLarge`] (and a message naming the
+/// format's cap) once it has yielded more than `format` allows. For streams whose size is not
+/// known in advance, such as a decompressed gzip file.
+pub fn capped<R: Read>(reader: R, format: Format) -> Capped<R> {
+    Capped {
+        inner: reader,
+        left: format.limit(),
+        format,
+    }
+}
+
+/// See [`capped`].
+pub struct Capped<R> {
+    inner: R,
+    left: u64,
+    format: Format,
+}
+
+impl<R: Read> Read for Capped<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        // One byte more than allowed is asked for, so reaching the cap exactly is not an error.
+        let want = buf
+            .len()
+            .min(usize::try_from(self.left + 1).unwrap_or(usize::MAX));
+        let n = self.inner.read(&mut buf[..want])?;
+        if n as u64 > self.left {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::FileTooLarge,
+                format!(
+                    "more than {} MiB, the most {} may hold; is this the right file?",
+                    self.format.limit() / MIB,
+                    self.format.name()
+                ),
+            ));
+        }
+        self.left -= n as u64;
+        Ok(n)
+    }
+}
+
+/// A read error as the library reports it: a file over its cap is invalid data (named), any
+/// other failure an I/O error on the path.
+pub fn read_error(path: &Path, e: std::io::Error) -> Error {
+    if e.kind() == std::io::ErrorKind::FileTooLarge {
+        Error::invalid(path.display().to_string(), "size", e.to_string())
+    } else {
+        Error::io(path, e)
+    }
+}
+
+/// The entries of the folder `dir`, sorted by name so every listing is reproducible.
+pub fn list_folder(dir: &Path) -> Result<Vec<PathBuf>> {
+    let mut paths = std::fs::read_dir(dir)
+        .map_err(|e| Error::io(dir, e))?
+        .map(|entry| entry.map(|e| e.path()).map_err(|e| Error::io(dir, e)))
+        .collect::<Result<Vec<_>>>()?;
+    paths.sort();
+    Ok(paths)
+}
+
+/// `bytes` as text, or an error naming `source_name` and the line and column of the first
+/// byte that is not UTF-8 (a binary or Latin-1 file given by mistake), not a bare "invalid
+/// UTF-8".
+pub fn utf8_text(bytes: Vec<u8>, source_name: &str) -> Result<String> {
+    String::from_utf8(bytes).map_err(|e| {
+        let valid = e.utf8_error().valid_up_to();
+        let bytes = e.as_bytes();
+        // Everything before `valid` is UTF-8, so it can be counted as text.
+        let before = std::str::from_utf8(&bytes[..valid]).unwrap_or_default();
+        let (line, column) = super::line_column(before, before.len());
+        Error::Parse {
+            source_name: source_name.to_string(),
+            line,
+            column,
+            message: format!(
+                "byte 0x{:02x} is not UTF-8 text; expected a UTF-8 text file",
+                bytes[valid]
+            ),
+        }
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_fifo_is_refused_without_blocking() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let fifo = dir.path().join("run.toml");
+        let c_path = std::ffi::CString::new(fifo.to_string_lossy().as_bytes()).expect("path");
+        // SAFETY: a valid NUL-terminated path; mkfifo only creates a file.
+        assert_eq!(unsafe { libc::mkfifo(c_path.as_ptr(), 0o600) }, 0);
+        let err = read_text(&fifo, Format::Settings).expect_err("a FIFO is not a file");
+        assert!(err.to_string().contains("FIFO"), "{err}");
+        let err = check_input_file(&fifo, "--config").expect_err("refused by flag");
+        assert!(err.to_string().contains("--config"), "{err}");
+        assert!(err.to_string().contains("FIFO"), "{err}");
+    }
+
+    #[test]
+    fn a_device_is_refused() {
+        let err = read_bytes(Path::new("/dev/zero"), Format::Settings).expect_err("a device");
+        assert!(err.to_string().contains("device"), "{err}");
+    }
+
+    #[test]
+    fn a_stream_past_its_cap_is_refused_and_the_cap_itself_is_not() {
+        let limit = Format::Settings.limit() as usize;
+        let mut exact = Vec::new();
+        capped(std::io::repeat(b'a').take(limit as u64), Format::Settings)
+            .read_to_end(&mut exact)
+            .expect("exactly the cap is fine");
+        assert_eq!(exact.len(), limit);
+        let err = capped(std::io::repeat(b'a'), Format::Settings)
+            .read_to_end(&mut Vec::new())
+            .expect_err("endless stream");
+        assert_eq!(err.kind(), std::io::ErrorKind::FileTooLarge);
+        assert!(err.to_string().contains("settings"), "{err}");
+    }
+
+    #[test]
+    fn a_dangling_link_and_a_folder_are_named() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let link = dir.path().join("gone.toml");
+        std::os::unix::fs::symlink(dir.path().join("missing"), &link).expect("symlink");
+        let err = check_input_file(&link, "--config").expect_err("dangling");
+        assert!(err.to_string().contains("dangling"), "{err}");
+        let err = check_input_file(dir.path(), "--config").expect_err("folder");
+        assert!(err.to_string().contains("folder"), "{err}");
+    }
+}

@@ -1,0 +1,204 @@
+//! One way out: every file rtr writes is written to a temporary file beside its destination
+//! and renamed into place ([`atomic_write_with`]), so a crash never leaves a half file, and
+//! only after it was checked to be whole (its size as written). A command's several files
+//! are staged together ([`super::StagedFolder`]).
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use crate::error::{Error, Result};
+
+/// A hidden temporary name in `folder` unique to this process and call, ending in
+/// `extension` (some writers pick the format from it). Short whatever the final name's
+/// length, so a destination name near the file system's limit still has a temporary one.
+pub(crate) fn temp_name(folder: &Path, what: &str, extension: Option<&str>) -> PathBuf {
+    static COUNTER: AtomicUsize = AtomicUsize::new(0);
+    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+    let name = format!("{TEMPORARY_PREFIX}{what}-{}-{n}", std::process::id());
+    folder.join(match extension {
+        Some(ext) => format!("{name}.{ext}"),
+        None => name,
+    })
+}
+
+/// How every temporary name of rtr starts.
+const TEMPORARY_PREFIX: &str = ".rtr-tmp-";
+
+/// Whether `name` is one of rtr's temporary names (a leftover of a killed run).
+pub fn is_temporary_name(name: &str) -> bool {
+    name.starts_with(TEMPORARY_PREFIX)
+}
+
+/// The folder `path` lives in (`.` for a bare file name).
+fn folder_of(path: &Path) -> &Path {
+    match path.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() => dir,
+        _ => Path::new("."),
+    }
+}
+
+/// Calls `write` with a temporary path next to `path`, checks that it wrote a file, then
+/// renames it onto `path`. On error the temporary file is removed and `path` is left as it
+/// was.
+pub fn atomic_write_with(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+    let folder = folder_of(path);
+    create_folder(folder)?;
+    let extension = path.extension().and_then(|e| e.to_str());
+    let tmp = temp_name(folder, "tmp", extension);
+    let result = write(&tmp)
+        .and_then(|()| check_written(&tmp, path))
+        .and_then(|()| std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e)));
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
+}
+
+/// A writer that reported success left a non-empty file and it reached the disk (synced, so
+/// a full disk surfaces here rather than as a silently empty file after the rename).
+fn check_written(tmp: &Path, path: &Path) -> Result<()> {
+    let file = std::fs::File::open(tmp).map_err(|e| Error::io(path, e))?;
+    file.sync_all().map_err(|e| Error::io(path, e))?;
+    let size = file.metadata().map_err(|e| Error::io(path, e))?.len();
+    if size == 0 {
+        return Err(Error::io(
+            path,
+            std::io::Error::other("the writer produced an empty file (disk full?)"),
+        ));
+    }
+    Ok(())
+}
+
+/// Writes `bytes` to `path` atomically.
+pub fn atomic_write(path: &Path, bytes: &[u8]) -> Result<()> {
+    atomic_write_with(path, |tmp| write_new(tmp, bytes))
+}
+
+/// Writes `bytes` to a new file `path` and checks that all of them arrived. Not atomic: for
+/// files inside a folder that is itself staged and renamed into place.
+pub fn write_new(path: &Path, bytes: &[u8]) -> Result<()> {
+    use std::io::Write;
+    let mut file = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
+    file.write_all(bytes)
+        .and_then(|()| file.sync_all())
+        .map_err(|e| Error::io(path, e))
+}
+
+/// Creates the folder `dir` and its missing parents.
+pub fn create_folder(dir: &Path) -> Result<()> {
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))
+}
+
+/// Removes the folder `dir` and everything in it; a missing folder is not an error.
+pub fn remove_folder(dir: &Path) -> Result<()> {
+    match std::fs::remove_dir_all(dir) {
+        Ok(()) => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
+        Err(e) => Err(Error::io(dir, e)),
+    }
+}
+
+/// Removes the file `path`; a missing file is not an error.
+pub fn remove_file(path: &Path) -> Result<()> {
+    match std::fs::remove_file(path) {
+        Ok(()) => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
+        Err(e) => Err(Error::io(path, e)),
+    }
+}
+
+/// Renames `from` to `to` (one atomic step within a file system).
+pub fn rename(from: &Path, to: &Path) -> Result<()> {
+    std::fs::rename(from, to).map_err(|e| Error::io(to, e))
+}
+
+/// A writer's output for [`std::fs::File`]-based encoders (GIF, PNG streams): creates `path`.
+pub fn create_file(path: &Path) -> Result<std::fs::File> {
+    std::fs::File::create(path).map_err(|e| Error::io(path, e))
+}
+
+/// What an output path must be.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OutputKind {
+    File,
+    Folder,
+}
+
+/// Checks, before any work, that `path` can be written as `kind`: it is not the other kind,
+/// nothing on its way is a file, and its nearest existing folder accepts a new file (probed
+/// with a file created and removed at once). `flag` names the option in the error. Leaves the
+/// file system as it was, so a command refused here has written nothing.
+pub fn check_output(path: &Path, kind: OutputKind, flag: &str) -> Result<()> {
+    let fail = |why: String| {
+        Err(Error::InvalidArgument(format!(
+            "{flag} {}: {why}",
+            path.display()
+        )))
+    };
+    if path.metadata().is_err() && path.symlink_metadata().is_ok() {
+        return fail(
+            "is a link to nothing (dangling symlink); remove it or name another path".into(),
+        );
+    }
+    match (path.metadata(), kind) {
+        (Ok(m), OutputKind::File) if m.is_dir() => {
+            return fail("is a folder; expected a file path".into());
+        }
+        (Ok(m), OutputKind::Folder) if !m.is_dir() => {
+            return fail("is a file; expected a folder".into());
+        }
+        _ => {}
+    }
+    let existing = path
+        .ancestors()
+        .skip(usize::from(kind == OutputKind::File || !path.is_dir()))
+        .map(|a| {
+            if a.as_os_str().is_empty() {
+                Path::new(".")
+            } else {
+                a
+            }
+        })
+        .find(|a| a.exists());
+    let Some(folder) = existing else {
+        return fail("no part of the path exists".into());
+    };
+    if !folder.is_dir() {
+        return fail(format!(
+            "{} is a file, so nothing can be written under it",
+            folder.display()
+        ));
+    }
+    let probe = temp_name(folder, "probe", None);
+    match std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&probe)
+    {
+        Ok(_) => {
+            let _ = std::fs::remove_file(&probe);
+            Ok(())
+        }
+        Err(e) => fail(format!("cannot write in {}: {e}", folder.display())),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn failed_write_leaves_the_old_file() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let path = dir.path().join("out.json");
+        atomic_write(&path, b"old").expect("first write");
+        let err = atomic_write_with(&path, |tmp| {
+            std::fs::write(tmp, b"half").map_err(|e| Error::io(tmp, e))?;
+            Err(Error::InvalidArgument("interrupted".into()))
+        });
+        assert!(err.is_err());
+        assert_eq!(std::fs::read(&path).expect("read"), b"old");
+        let leftovers = std::fs::read_dir(dir.path()).expect("list").count();
+        assert_eq!(leftovers, 1, "the temporary file is cleaned up");
+    }
+}
