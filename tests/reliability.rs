@@ -230,3 +230,213 @@ fn a_fifo_inside_an_input_folder_is_refused_without_blocking() {
         &["family.toml", "FIFO"],
     );
 }
+
+#[test]
+fn an_output_that_is_or_holds_or_lies_in_an_input_is_refused() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let run_dir = dir.path().join("run");
+    std::fs::create_dir_all(&run_dir).expect("mkdir");
+    let run_file = run_dir.join("il.toml");
+    std::fs::write(&run_file, "method = \"IL\"\n").expect("write");
+    let scenarios = dir.path().join("scenarios");
+    std::fs::create_dir_all(scenarios.join("eval")).expect("mkdir");
+    let recordings = dir.path().join("tracks.csv");
+    std::fs::write(
+        &recordings,
+        "track_id,t,x,y,heading,speed,accel_cmd,steer_cmd\n",
+    )
+    .expect("write");
+    let xodr = "data/automatum-a9/staticWorld.xodr";
+    let path = |p: &Path| p.to_str().expect("UTF-8 path").to_string();
+    let cases: Vec<(Vec<String>, &str)> = vec![
+        (
+            vec![
+                "train".into(),
+                "--config".into(),
+                path(&run_file),
+                "--out".into(),
+                path(&run_dir),
+            ],
+            "holds the input --config",
+        ),
+        (
+            vec![
+                "eval".into(),
+                "--checkpoint".into(),
+                "models/il_main".into(),
+                "--set".into(),
+                "longtail".into(),
+                "--scenarios".into(),
+                path(&scenarios),
+                "--out".into(),
+                path(&scenarios.join("eval/results")),
+            ],
+            "lies inside the input --scenarios",
+        ),
+        (
+            vec![
+                "sim2real".into(),
+                "--recordings".into(),
+                path(&recordings),
+                "--report".into(),
+                path(&recordings),
+            ],
+            "is the input --recordings",
+        ),
+        (
+            vec![
+                "map".into(),
+                "export".into(),
+                "--xodr".into(),
+                xodr.into(),
+                "--out".into(),
+                xodr.into(),
+            ],
+            "is the input --xodr",
+        ),
+    ];
+    for (args, expected) in cases {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        assert_refused(&args, &[expected]);
+    }
+    assert_eq!(
+        std::fs::read_to_string(&run_file).expect("the run file"),
+        "method = \"IL\"\n"
+    );
+}
+
+#[test]
+fn a_folder_of_the_users_is_never_written_over() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = dir.path().join("mine");
+    std::fs::create_dir_all(&out).expect("mkdir");
+    std::fs::write(out.join("table.md"), "my notes").expect("write");
+    let out_str = out.to_str().expect("UTF-8 path");
+    assert_refused(
+        &[
+            "train",
+            "--config",
+            "experiments/main/il.toml",
+            "--out",
+            out_str,
+        ],
+        &["not a run's", "table.md"],
+    );
+    assert_refused(
+        &[
+            "eval",
+            "--checkpoint",
+            "models/il_main",
+            "--set",
+            "nominal",
+            "--scenes",
+            "1",
+            "--out",
+            out_str,
+        ],
+        &["did not write", "table.md"],
+    );
+    assert_eq!(
+        std::fs::read_to_string(out.join("table.md")).expect("kept"),
+        "my notes"
+    );
+}
+
+#[test]
+fn a_second_writer_of_a_folder_is_refused_naming_the_first() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = dir.path().join("eval");
+    let _first = rtr::io::claim_output_folder(&out, "--out", &rtr::io::Inputs::new())
+        .expect("this process claims it");
+    let out_str = out.to_str().expect("UTF-8 path");
+    let pid = std::process::id().to_string();
+    assert_refused(
+        &[
+            "eval",
+            "--checkpoint",
+            "models/il_main",
+            "--set",
+            "nominal",
+            "--out",
+            out_str,
+        ],
+        &["another rtr process", &pid],
+    );
+    assert_refused(
+        &[
+            "train",
+            "--config",
+            "experiments/main/il.toml",
+            "--out",
+            out_str,
+        ],
+        &["another rtr process", &pid],
+    );
+}
+
+#[test]
+fn a_new_result_set_replaces_the_earlier_one_whole() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = dir.path().join("eval");
+    let out_str = out.to_str().expect("UTF-8 path");
+    let eval = |extra: &[&str]| {
+        let status = rtr()
+            .args([
+                "eval",
+                "--checkpoint",
+                "models/il_main",
+                "--set",
+                "nominal",
+                "--scenes",
+                "1",
+            ])
+            .args(extra)
+            .args(["--out", out_str])
+            .stdout(Stdio::null())
+            .status()
+            .expect("rtr runs");
+        assert!(status.success(), "eval {extra:?}");
+    };
+    let files = || {
+        let mut names: Vec<String> = walk(&out)
+            .iter()
+            .map(|f| {
+                f.strip_prefix(&out)
+                    .expect("under out")
+                    .display()
+                    .to_string()
+            })
+            .collect();
+        names.sort();
+        names
+    };
+    eval(&[
+        "--commonroad",
+        "data/commonroad-us101/USA_US101-3_1_T-1.xml.gz",
+    ]);
+    let first = files();
+    let clip = |f: &&String| f.contains("commonroad") || f.contains("us101");
+    assert!(first.iter().filter(clip).count() >= 2, "{first:?}");
+    eval(&[]);
+    let second = files();
+    let stale: Vec<_> = second.iter().filter(clip).collect();
+    assert!(
+        stale.is_empty(),
+        "files of the earlier result set left: {stale:?}"
+    );
+    let results = std::fs::read_to_string(out.join("results.json")).expect("results");
+    assert!(!results.contains("commonroad"), "{results}");
+}
+
+fn walk(dir: &Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    for entry in std::fs::read_dir(dir).expect("list") {
+        let path = entry.expect("entry").path();
+        if path.is_dir() {
+            out.extend(walk(&path));
+        } else {
+            out.push(path);
+        }
+    }
+    out
+}

@@ -4,20 +4,22 @@
 //! that a closed pipe cannot crash ([`console`]). `tests/structure.rs` keeps every other
 //! module off `std::fs` and the printing macros.
 
+mod claim;
 pub mod console;
 mod input;
 mod output;
 mod process_files;
 mod staged;
 
+pub use claim::{FolderClaim, Inputs, check_output_file, claim_output_folder};
 pub use input::{
     Capped, Format, capped, check_input_file, check_input_path, list_folder, open_regular,
     read_bytes, read_error, read_text, utf8_text,
 };
 pub(crate) use output::temp_name;
 pub use output::{
-    OutputKind, atomic_write, atomic_write_with, check_output, create_file, create_folder,
-    is_temporary_name, remove_file, remove_folder, rename, write_new,
+    atomic_write, atomic_write_with, create_file, create_folder, is_temporary_name, remove_file,
+    remove_folder, rename, write_new,
 };
 pub use process_files::{read_process_file, write_process_file};
 pub use staged::StagedFolder;

@@ -30,7 +30,7 @@ pub fn is_temporary_name(name: &str) -> bool {
 }
 
 /// The folder `path` lives in (`.` for a bare file name).
-fn folder_of(path: &Path) -> &Path {
+pub(super) fn folder_of(path: &Path) -> &Path {
     match path.parent() {
         Some(dir) if !dir.as_os_str().is_empty() => dir,
         _ => Path::new("."),
@@ -119,7 +119,7 @@ pub fn create_file(path: &Path) -> Result<std::fs::File> {
 
 /// What an output path must be.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum OutputKind {
+pub(super) enum OutputKind {
     File,
     Folder,
 }
@@ -128,7 +128,7 @@ pub enum OutputKind {
 /// nothing on its way is a file, and its nearest existing folder accepts a new file (probed
 /// with a file created and removed at once). `flag` names the option in the error. Leaves the
 /// file system as it was, so a command refused here has written nothing.
-pub fn check_output(path: &Path, kind: OutputKind, flag: &str) -> Result<()> {
+pub(super) fn check_output(path: &Path, kind: OutputKind, flag: &str) -> Result<()> {
     let fail = |why: String| {
         Err(Error::InvalidArgument(format!(
             "{flag} {}: {why}",

@@ -59,20 +59,112 @@ impl StagedFolder {
         }
     }
 
-    /// Moves everything staged into the target folder (replacing files of the same name) and
-    /// removes the staging folder. Refuses, before moving anything, when a staged file would
-    /// land on a folder or a staged folder on a file.
+    /// Moves everything staged into the target folder and records it there as rtr's result
+    /// set ([`OWN_FILES`]); the files of rtr's earlier set that the new one lacks (an earlier
+    /// run's figures) are removed, and anything else in the folder is left alone. Refuses,
+    /// before moving anything, when a staged file would replace a file rtr did not write, or
+    /// a file would land on a folder or a folder on a file.
     pub fn commit(mut self) -> Result<()> {
+        let staged = relative_files(&self.staging)?;
         if self.target.exists() {
             check_mergeable(&self.staging, &self.target)?;
+            let earlier = own_files(&self.target)?;
+            refuse_foreign(&self.target, &staged, &earlier)?;
             merge(&self.staging, &self.target)?;
-            std::fs::remove_dir_all(&self.staging).map_err(|e| Error::io(&self.staging, e))?;
+            super::remove_folder(&self.staging)?;
+            record_own_files(&self.target, &staged)?;
+            remove_stale(&self.target, &earlier, &staged)?;
         } else {
-            std::fs::rename(&self.staging, &self.target).map_err(|e| Error::io(&self.target, e))?;
+            record_own_files(&self.staging, &staged)?;
+            super::rename(&self.staging, &self.target)?;
         }
         self.committed = true;
         Ok(())
     }
+}
+
+/// The file in a folder written through [`StagedFolder`] that lists the files of rtr's last
+/// result set there, one path per line relative to the folder.
+pub const OWN_FILES: &str = ".rtr-output";
+
+/// Every file under `dir`, as paths relative to it, sorted.
+fn relative_files(dir: &Path) -> Result<Vec<PathBuf>> {
+    fn walk(root: &Path, dir: &Path, out: &mut Vec<PathBuf>) -> Result<()> {
+        for path in super::list_folder(dir)? {
+            if path.is_dir() {
+                walk(root, &path, out)?;
+            } else if let Ok(relative) = path.strip_prefix(root) {
+                out.push(relative.to_path_buf());
+            }
+        }
+        Ok(())
+    }
+    let mut out = Vec::new();
+    walk(dir, dir, &mut out)?;
+    out.sort();
+    Ok(out)
+}
+
+/// The files of rtr's last result set in `dir` ([`OWN_FILES`]); none if it has no record.
+fn own_files(dir: &Path) -> Result<Vec<PathBuf>> {
+    let record = dir.join(OWN_FILES);
+    if !record.is_file() {
+        return Ok(Vec::new());
+    }
+    let text = super::read_text(&record, super::Format::SceneList)?;
+    Ok(text
+        .lines()
+        .filter(|l| !l.is_empty())
+        .map(PathBuf::from)
+        .collect())
+}
+
+fn record_own_files(dir: &Path, files: &[PathBuf]) -> Result<()> {
+    let text: String = files.iter().map(|f| format!("{}\n", f.display())).collect();
+    super::atomic_write(&dir.join(OWN_FILES), text.as_bytes())
+}
+
+/// Refuses when a staged file would replace a file of `target` that is not in rtr's `earlier`
+/// result set there: a file of the user's, or of an rtr too old to keep the record.
+fn refuse_foreign(target: &Path, staged: &[PathBuf], earlier: &[PathBuf]) -> Result<()> {
+    let foreign: Vec<String> = staged
+        .iter()
+        .filter(|f| target.join(f).exists() && !earlier.contains(f))
+        .map(|f| target.join(f).display().to_string())
+        .collect();
+    if foreign.is_empty() {
+        return Ok(());
+    }
+    Err(Error::InvalidArgument(format!(
+        "{} already holds {} that rtr did not write there ({}); nothing was written. Move \
+         them away or choose another folder",
+        target.display(),
+        if foreign.len() == 1 {
+            "a file"
+        } else {
+            "files"
+        },
+        foreign.join(", ")
+    )))
+}
+
+/// Removes the files of rtr's `earlier` set that the `current` one lacks, and the folders
+/// that leaves empty.
+fn remove_stale(target: &Path, earlier: &[PathBuf], current: &[PathBuf]) -> Result<()> {
+    for file in earlier.iter().filter(|f| !current.contains(f)) {
+        let path = target.join(file);
+        super::remove_file(&path)?;
+        for dir in path.ancestors().skip(1) {
+            if dir == target || !dir.starts_with(target) {
+                break;
+            }
+            if !super::list_folder(dir).is_ok_and(|entries| entries.is_empty()) {
+                break;
+            }
+            super::remove_folder(dir)?;
+        }
+    }
+    Ok(())
 }
 
 impl Drop for StagedFolder {
@@ -179,17 +271,58 @@ mod tests {
             target.join("figures/a.svg")
         );
         staged.commit().expect("commit");
-        // Into an existing folder: new files join, same-named ones are replaced, others stay.
+        // Into an existing folder: rtr's own files are replaced, the user's stay.
         std::fs::write(target.join("keep.txt"), b"k").expect("write");
         let staged = StagedFolder::new(&target).expect("stage");
         std::fs::create_dir(staged.path().join("figures")).expect("mkdir");
         std::fs::write(staged.path().join("figures/a.svg"), b"new").expect("write");
         std::fs::write(staged.path().join("table.md"), b"t").expect("write");
         staged.commit().expect("commit");
-        assert_eq!(names(&target), ["figures", "keep.txt", "table.md"]);
+        assert_eq!(
+            names(&target),
+            [OWN_FILES, "figures", "keep.txt", "table.md"]
+        );
         assert_eq!(
             std::fs::read(target.join("figures/a.svg")).expect("read"),
             b"new"
+        );
+        assert_eq!(names(root.path()), ["out"], "no staging folder is left");
+    }
+
+    #[test]
+    fn an_earlier_result_set_leaves_nothing_beside_the_new_one() {
+        let root = tempfile::tempdir().expect("temp dir");
+        let target = root.path().join("out");
+        let staged = StagedFolder::new(&target).expect("stage");
+        std::fs::create_dir_all(staged.path().join("figures/old")).expect("mkdir");
+        std::fs::write(staged.path().join("figures/old/a.svg"), b"a").expect("write");
+        std::fs::write(staged.path().join("results.json"), b"1").expect("write");
+        staged.commit().expect("commit");
+        let staged = StagedFolder::new(&target).expect("stage");
+        std::fs::write(staged.path().join("results.json"), b"2").expect("write");
+        staged.commit().expect("commit");
+        assert_eq!(names(&target), [OWN_FILES, "results.json"]);
+        assert_eq!(
+            std::fs::read(target.join("results.json")).expect("read"),
+            b"2"
+        );
+    }
+
+    #[test]
+    fn a_file_rtr_did_not_write_is_never_replaced() {
+        let root = tempfile::tempdir().expect("temp dir");
+        let target = root.path().join("out");
+        std::fs::create_dir(&target).expect("mkdir");
+        std::fs::write(target.join("table.md"), b"mine").expect("write");
+        let staged = StagedFolder::new(&target).expect("stage");
+        std::fs::write(staged.path().join("table.md"), b"t").expect("write");
+        std::fs::write(staged.path().join("results.json"), b"{}").expect("write");
+        let err = staged.commit().expect_err("the user's table.md");
+        assert!(err.to_string().contains("did not write"), "{err}");
+        assert_eq!(names(&target), ["table.md"]);
+        assert_eq!(
+            std::fs::read(target.join("table.md")).expect("read"),
+            b"mine"
         );
         assert_eq!(names(root.path()), ["out"], "no staging folder is left");
     }

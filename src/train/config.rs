@@ -601,6 +601,29 @@ impl TrainConfig {
             }))
     }
 
+    /// The files and folders the run reads besides its run file, each named by its field, so
+    /// that a command can keep its outputs off them.
+    pub fn input_paths(&self) -> Vec<(&'static str, PathBuf)> {
+        let mut out = Vec::new();
+        let mut add = |field: &'static str, path: Option<&PathBuf>| {
+            if let Some(p) = path {
+                out.push((field, p.clone()));
+            }
+        };
+        add("dynamics", self.dynamics.as_ref());
+        add("init.policy", self.init.as_ref().map(|i| &i.policy));
+        add(
+            "reference.checkpoint",
+            self.reference.as_ref().and_then(|r| r.checkpoint.as_ref()),
+        );
+        add("data.longtail_dir", self.data.longtail_dir.as_ref());
+        add("data.curated", self.data.curated.as_ref());
+        for source in &self.data.commonroad {
+            add("data.commonroad.path", Some(&source.path));
+        }
+        out
+    }
+
     /// Reads and validates a run file; a relative reference checkpoint is resolved against the
     /// file's folder.
     pub fn from_toml_file(path: &Path) -> Result<Self> {

@@ -6,7 +6,7 @@ use clap::{Args, ValueEnum};
 
 use rtr::backend::Backend;
 use rtr::data::{A9Dataset, a9};
-use rtr::io::{OutputKind, check_output};
+use rtr::io::{Inputs, check_output_file};
 use rtr::map::{Map, ProceduralMap};
 use rtr::render::{MAX_WIDTH_PX, RenderOptions, check_target, output_paths};
 use rtr::{Error, Result};
@@ -27,9 +27,13 @@ pub struct DataArgs {
 }
 
 impl DataArgs {
+    /// The A9 folder read: `--data` or the shipped copy.
+    pub fn dir(&self) -> PathBuf {
+        self.data.clone().unwrap_or_else(a9::default_dir)
+    }
+
     pub fn load(&self) -> Result<A9Dataset> {
-        let dir = self.data.clone().unwrap_or_else(a9::default_dir);
-        A9Dataset::load(&dir)
+        A9Dataset::load(&self.dir())
     }
 }
 
@@ -53,6 +57,11 @@ pub struct MapSource {
 }
 
 impl MapSource {
+    /// The file the map is read from, if any, for the output checks.
+    pub fn inputs(&self) -> Inputs {
+        Inputs::new().with_all("--xodr", &self.xodr)
+    }
+
     pub fn load(&self) -> Result<Map> {
         match (&self.xodr, &self.procedural) {
             (Some(path), _) => {
@@ -96,7 +105,7 @@ pub fn device_count(devices: Option<usize>, backend: Backend) -> Result<usize> {
 
 /// The image files an `--out` names (itself if it has an extension, else PREFIX.png and
 /// PREFIX.svg), each checked before any work: a .png or .svg name, writable.
-pub fn image_targets(out: &Path, opts: &RenderOptions) -> Result<Vec<PathBuf>> {
+pub fn image_targets(out: &Path, opts: &RenderOptions, inputs: &Inputs) -> Result<Vec<PathBuf>> {
     let paths = match out.extension() {
         Some(_) => vec![out.to_path_buf()],
         None => output_paths(out).to_vec(),
@@ -106,7 +115,7 @@ pub fn image_targets(out: &Path, opts: &RenderOptions) -> Result<Vec<PathBuf>> {
             Error::InvalidArgument(why) => Error::InvalidArgument(format!("--out {why}")),
             other => other,
         })?;
-        check_output(path, OutputKind::File, "--out")?;
+        check_output_file(path, "--out", inputs)?;
     }
     Ok(paths)
 }

@@ -8,7 +8,7 @@ use rtr::backend::Backend;
 use rtr::data::SceneConfig;
 use rtr::eval::study::load_entries;
 use rtr::eval::{EvalConfig, EvalScenes};
-use rtr::io::{OutputKind, check_output};
+use rtr::io::{Inputs, claim_output_folder};
 use rtr::studies::downstream::{DownstreamConfig, downstream, downstream_table};
 use rtr::{Error, Result};
 
@@ -50,9 +50,13 @@ pub fn run(args: DownstreamArgs) -> Result<()> {
                 .into(),
         ));
     }
-    if let Some(out) = &args.out {
-        check_output(out, OutputKind::Folder, "--out")?;
-    }
+    let inputs = Inputs::new()
+        .with_all("--checkpoint", &args.checkpoints)
+        .with("--data", args.data.dir());
+    let _claim = match &args.out {
+        Some(out) => Some(claim_output_folder(out, "--out", &inputs)?),
+        None => None,
+    };
     let entries = load_entries(&args.checkpoints, args.idm, &args.backend.device(false)?)?;
     let dataset = args.data.load()?;
     let split = dataset.scenes(&SceneConfig::default())?;

@@ -8,7 +8,7 @@ use rtr::backend::Backend;
 use rtr::data::{SceneConfig, bend_scenes, commonroad};
 use rtr::eval::study::{Entry, evaluate_entries, load_entries, write_study};
 use rtr::eval::{EvalConfig, EvalScenes, EvalSet, load_sets, markdown_table};
-use rtr::io::{OutputKind, StagedFolder, check_output};
+use rtr::io::{Inputs, StagedFolder, claim_output_folder};
 use rtr::{Error, Result};
 
 use super::args::{DataArgs, count};
@@ -73,9 +73,15 @@ pub fn run(args: EvalArgs) -> Result<()> {
     for path in &args.checkpoints {
         rtr::io::check_input_path(path, "--checkpoint")?;
     }
-    if let Some(out) = &args.out {
-        check_output(out, OutputKind::Folder, "--out")?;
-    }
+    let inputs = Inputs::new()
+        .with_all("--checkpoint", &args.checkpoints)
+        .with_all("--scenarios", &args.scenarios)
+        .with_all("--commonroad", &args.commonroad)
+        .with("--data", args.data.dir());
+    let _claim = match &args.out {
+        Some(out) => Some(claim_output_folder(out, "--out", &inputs)?),
+        None => None,
+    };
     if let Some(problem) = args.a9_bend.and_then(rtr::map::bend_curvature_problem) {
         return Err(Error::InvalidArgument(format!("--a9-bend {problem}")));
     }

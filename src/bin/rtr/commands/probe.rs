@@ -69,9 +69,13 @@ pub fn run(command: ProbeCommand) -> Result<()> {
         })
         .collect::<Result<Vec<_>>>()?;
     let base = base_config(&args)?;
-    if let Some(out) = &args.out {
-        rtr::io::check_output(out, rtr::io::OutputKind::Folder, "--out")?;
-    }
+    let inputs = rtr::io::Inputs::new()
+        .with_all("--config", &args.config)
+        .with_all("--warm-start", &args.warm_start);
+    let _claim = match &args.out {
+        Some(out) => Some(rtr::io::claim_output_folder(out, "--out", &inputs)?),
+        None => None,
+    };
     let settings = ProbeSettings {
         base,
         iterations: args.iterations,

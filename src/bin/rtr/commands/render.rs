@@ -8,6 +8,7 @@ use clap::Args;
 use rtr::backend::Backend;
 use rtr::data::{SceneConfig, commonroad};
 use rtr::eval::EvalSet;
+use rtr::io::Inputs;
 use rtr::render::{MAX_FPS, RenderOptions, render_scene};
 use rtr::scenario::ConcreteScenario;
 use rtr::scene::Scene;
@@ -73,6 +74,17 @@ pub(super) enum Source {
     Scenario(Box<ConcreteScenario>),
 }
 
+impl RenderArgs {
+    /// The files and folders the command reads, for the output checks.
+    pub(super) fn inputs(&self) -> Inputs {
+        Inputs::new()
+            .with("--data", self.data.dir())
+            .with_all("--scenario", &self.scenario)
+            .with_all("--commonroad", &self.commonroad)
+            .with_all("--checkpoint", &self.checkpoint)
+    }
+}
+
 pub fn run(args: RenderArgs) -> Result<()> {
     if args.animate {
         return super::animate::run(&args);
@@ -81,7 +93,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         width_px: args.width.unwrap_or(PICTURE_WIDTH_PX),
         ..Default::default()
     };
-    let targets = image_targets(&args.out, &opts)?;
+    let targets = image_targets(&args.out, &opts, &args.inputs())?;
     let scene = match source(&args)? {
         Source::Scenario(scenario) => return render_scenario(&scenario, &opts, &targets),
         Source::Recorded { scene, .. } => scene,

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use clap::Subcommand;
 
 use rtr::Result;
-use rtr::io::{OutputKind, StagedFolder, check_output};
+use rtr::io::{Inputs, StagedFolder, claim_output_folder};
 use rtr::scenario::{GenerateConfig, ScenarioSet, builtin_families, generate_sets, load_families};
 
 use super::args::{DataArgs, count};
@@ -71,7 +71,10 @@ pub fn run(command: ScenariosCommand) -> Result<()> {
                         .into(),
                 ));
             }
-            check_output(&out, OutputKind::Folder, "--out")?;
+            let inputs = Inputs::new()
+                .with_all("--families", &families)
+                .with("--data", data.dir());
+            let _claim = claim_output_folder(&out, "--out", &inputs)?;
             refuse_earlier_sets(&out)?;
             let families = load_families(&families.unwrap_or_else(builtin_families))?;
             let dataset = data.load()?;

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 
-use rtr::io::{OutputKind, StagedFolder, check_output};
+use rtr::io::{Inputs, StagedFolder, check_output_file, claim_output_folder};
 use rtr::sim2real::{Sim2RealOptions, a9::a9_recordings, identify, plots::write_plots, thinning};
 use rtr::{Error, Result};
 
@@ -52,13 +52,17 @@ pub fn run(args: Sim2RealArgs) -> Result<()> {
             args.horizon
         )));
     }
-    check_output(&args.report, OutputKind::File, "--report")?;
+    let inputs = Inputs::new()
+        .with_all("--recordings", &args.recordings)
+        .with("--data", args.data.dir());
+    check_output_file(&args.report, "--report", &inputs)?;
     check_distinct_outputs(&args)?;
-    if let Some(dir) = &args.plots {
-        check_output(dir, OutputKind::Folder, "--plots")?;
-    }
+    let _claim = match &args.plots {
+        Some(dir) => Some(claim_output_folder(dir, "--plots", &inputs)?),
+        None => None,
+    };
     if let Some(path) = &args.save_dynamics {
-        check_output(path, OutputKind::File, "--save-dynamics")?;
+        check_output_file(path, "--save-dynamics", &inputs)?;
     }
     let (recordings, commands_inferred) = match &args.recordings {
         Some(path) => {

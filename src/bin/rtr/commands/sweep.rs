@@ -6,7 +6,7 @@ use clap::Args;
 
 use rtr::Result;
 use rtr::eval::{EvalConfig, EvalSet, load_sets};
-use rtr::io::{OutputKind, check_output};
+use rtr::io::{Inputs, claim_output_folder};
 use rtr::studies::sweep::{check_points, evaluate_points, parse_points, train_points, write_sweep};
 
 use super::args::{DataArgs, count};
@@ -46,7 +46,11 @@ pub struct SweepArgs {
 
 pub fn run(args: SweepArgs) -> Result<()> {
     let points = parse_points(&args.points)?;
-    check_output(&args.out, OutputKind::Folder, "--out")?;
+    let inputs = Inputs::new()
+        .with("--config", &args.config)
+        .with_all("--scenarios", &args.scenarios)
+        .with("--data", args.data.dir());
+    let _claim = claim_output_folder(&args.out, "--out", &inputs)?;
     let sets = args
         .set
         .iter()

@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use clap::Args;
 
-use rtr::io::{OutputKind, check_output};
+use rtr::io::{Inputs, claim_output_folder};
 use rtr::{Error, Result};
 
 use super::args::{DataArgs, count};
@@ -77,7 +77,14 @@ pub fn run(args: TrainArgs) -> Result<()> {
             .map_or("run".into(), |s| s.to_owned());
         PathBuf::from("runs").join(stem)
     });
-    check_output(&out, OutputKind::Folder, "--out")?;
+    let inputs = config.input_paths().into_iter().fold(
+        Inputs::new()
+            .with("--config", &args.config)
+            .with("--data", args.data.dir()),
+        |inputs, (field, path)| inputs.with(field, path),
+    );
+    let _claim = claim_output_folder(&out, "--out", &inputs)?;
+    refuse_foreign_folder(&out)?;
     rtr::train::checkpoint::resume_point(&out, args.resume)?;
     let dataset = args.data.load()?;
     let method = config.method.name();
@@ -131,6 +138,29 @@ pub fn run(args: TrainArgs) -> Result<()> {
         )?;
     }
     Ok(())
+}
+
+/// Refuses an `--out` folder that holds files but no run: a new run would write its
+/// config.toml and curves.csv over whatever is there. A folder a failed run left (its
+/// config.toml and curves.csv only) is fine.
+fn refuse_foreign_folder(out: &Path) -> Result<()> {
+    if !out.is_dir() || rtr::train::checkpoint::has_checkpoint(out) {
+        return Ok(());
+    }
+    let foreign: Vec<String> = rtr::io::list_folder(out)?
+        .iter()
+        .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+        .filter(|n| !["config.toml", "curves.csv", "checkpoints"].contains(&n.as_str()))
+        .collect();
+    if foreign.is_empty() {
+        return Ok(());
+    }
+    Err(Error::InvalidArgument(format!(
+        "--out {}: holds files that are not a run's ({}); a run writes config.toml, \
+         curves.csv and checkpoints/ there. Choose an empty or new folder",
+        out.display(),
+        foreign.join(", ")
+    )))
 }
 
 /// A fresh run that failed before its first checkpoint (bad data found late, divergence at the

@@ -1,0 +1,210 @@
+//! Claiming an output before any work: it is writable, it is not one of the command's inputs
+//! (nor contains one, nor lies inside an input folder), and an output folder is locked for the
+//! command's lifetime, so a second rtr process writing there is refused naming the first.
+
+use std::fs::File;
+use std::io::Write;
+use std::path::{Component, Path, PathBuf};
+
+use super::output::{OutputKind, check_output, create_folder, folder_of};
+use crate::error::{Error, Result};
+
+/// The files and folders a command reads, each with the flag that named it.
+#[derive(Debug, Default, Clone)]
+pub struct Inputs {
+    items: Vec<(String, PathBuf)>,
+}
+
+impl Inputs {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Adds the input `path` given with `flag`.
+    pub fn with(mut self, flag: &str, path: impl AsRef<Path>) -> Self {
+        self.items
+            .push((flag.to_string(), path.as_ref().to_path_buf()));
+        self
+    }
+
+    /// Adds every path of `paths`, each given with `flag`.
+    pub fn with_all<P: AsRef<Path>>(self, flag: &str, paths: impl IntoIterator<Item = P>) -> Self {
+        paths
+            .into_iter()
+            .fold(self, |inputs, p| inputs.with(flag, p))
+    }
+}
+
+/// Checks, before any work, that the file `path` (given with `flag`) can be written and is
+/// none of `inputs`, nor inside an input folder.
+pub fn check_output_file(path: &Path, flag: &str, inputs: &Inputs) -> Result<()> {
+    check_output(path, OutputKind::File, flag)?;
+    refuse_overlap(path, flag, inputs)
+}
+
+/// A folder claimed by [`claim_output_folder`]; the claim lasts as long as this value.
+#[must_use = "the output folder is locked only while its claim lives"]
+#[derive(Debug)]
+pub struct FolderClaim {
+    _lock: File,
+}
+
+/// Checks, before any work, that the folder `path` (given with `flag`) can be written, is
+/// none of `inputs`, holds none and lies in none; then locks it against other rtr processes
+/// until the returned claim is dropped. A second writer gets an error naming the first.
+pub fn claim_output_folder(path: &Path, flag: &str, inputs: &Inputs) -> Result<FolderClaim> {
+    check_output(path, OutputKind::Folder, flag)?;
+    refuse_overlap(path, flag, inputs)?;
+    lock(path, flag)
+}
+
+/// `path` made absolute with every existing part's links resolved (an output need not exist
+/// yet), so that two spellings of one place compare equal.
+fn resolved(path: &Path) -> PathBuf {
+    let absolute = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
+    let mut existing = absolute.as_path();
+    let mut rest = Vec::new();
+    loop {
+        if let Ok(real) = existing.canonicalize() {
+            return rest.iter().rev().fold(real, |p, part| p.join(part));
+        }
+        match (existing.parent(), existing.file_name()) {
+            (Some(parent), Some(name)) => {
+                rest.push(name.to_os_string());
+                existing = parent;
+            }
+            _ => return absolute,
+        }
+    }
+}
+
+/// Refuses an output that is an input, holds one or lies inside an input folder.
+fn refuse_overlap(output: &Path, flag: &str, inputs: &Inputs) -> Result<()> {
+    let out = resolved(output);
+    for (input_flag, input) in &inputs.items {
+        let inp = resolved(input);
+        let why = if out == inp {
+            "is"
+        } else if inp.starts_with(&out) {
+            "holds"
+        } else if out.starts_with(&inp) && input.is_dir() {
+            "lies inside"
+        } else {
+            continue;
+        };
+        return Err(Error::InvalidArgument(format!(
+            "{flag} {} {why} the input {input_flag} {}: writing there would change what the \
+             command reads; choose another {flag}",
+            output.display(),
+            input.display()
+        )));
+    }
+    Ok(())
+}
+
+/// Locks `target` through a lock file beside it (the folder itself may be replaced or not
+/// exist yet). The operating system releases the lock when the process ends, however it ends.
+fn lock(target: &Path, flag: &str) -> Result<FolderClaim> {
+    let parent = folder_of(target);
+    create_folder(parent)?;
+    let path = parent.join(lock_name(target));
+    let mut file = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .create(true)
+        .truncate(false)
+        .open(&path)
+        .map_err(|e| Error::io(&path, e))?;
+    match file.try_lock() {
+        Ok(()) => {
+            let holder = format!(
+                "pid {}: {}",
+                std::process::id(),
+                std::env::args().collect::<Vec<_>>().join(" ")
+            );
+            // The holder is only for messages: a failure to record it does not matter.
+            let _ = file
+                .set_len(0)
+                .and_then(|()| file.write_all(holder.as_bytes()));
+            Ok(FolderClaim { _lock: file })
+        }
+        Err(std::fs::TryLockError::WouldBlock) => {
+            let holder = std::fs::read_to_string(&path).unwrap_or_default();
+            Err(Error::InvalidArgument(format!(
+                "{flag} {}: another rtr process is writing there ({}); wait for it to end or \
+                 choose another {flag}",
+                target.display(),
+                if holder.is_empty() {
+                    "unknown"
+                } else {
+                    holder.trim()
+                }
+            )))
+        }
+        Err(std::fs::TryLockError::Error(e)) => Err(Error::io(&path, e)),
+    }
+}
+
+/// The lock file's name for `target`: hidden, and short whatever the folder's name.
+fn lock_name(target: &Path) -> String {
+    let name = target
+        .components()
+        .next_back()
+        .map(|c| match c {
+            Component::Normal(n) => n.to_string_lossy().into_owned(),
+            _ => "out".into(),
+        })
+        .unwrap_or_else(|| "out".into());
+    if name.len() <= 100 {
+        return format!(".rtr-lock-{name}");
+    }
+    use sha2::Digest;
+    let digest = sha2::Sha256::digest(name.as_bytes());
+    let hex: String = digest[..16].iter().map(|b| format!("{b:02x}")).collect();
+    format!(".rtr-lock-{hex}")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_second_claim_is_refused_naming_the_first_and_released_with_it() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let out = dir.path().join("run");
+        let first = claim_output_folder(&out, "--out", &Inputs::new()).expect("first claim");
+        let err = claim_output_folder(&out, "--out", &Inputs::new()).expect_err("second");
+        assert!(err.to_string().contains("another rtr process"), "{err}");
+        assert!(
+            err.to_string().contains(&std::process::id().to_string()),
+            "{err}"
+        );
+        drop(first);
+        let _claim = claim_output_folder(&out, "--out", &Inputs::new()).expect("free again");
+    }
+
+    #[test]
+    fn an_output_that_is_holds_or_lies_in_an_input_is_refused() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let sets = dir.path().join("scenarios");
+        std::fs::create_dir_all(sets.join("eval")).expect("mkdir");
+        let run_file = dir.path().join("runs/a/run.toml");
+        std::fs::create_dir_all(run_file.parent().expect("parent")).expect("mkdir");
+        std::fs::write(&run_file, "method = \"IL\"").expect("write");
+        let inputs = Inputs::new()
+            .with("--scenarios", &sets)
+            .with("--config", &run_file);
+        for (out, why) in [
+            (sets.join("eval/results"), "lies inside"),
+            (dir.path().join("runs/a"), "holds"),
+            (dir.path().join("runs/./a/../a"), "holds"),
+        ] {
+            let err = claim_output_folder(&out, "--out", &inputs).expect_err("overlap");
+            assert!(err.to_string().contains(why), "{err}");
+        }
+        let err = check_output_file(&run_file, "--report", &inputs).expect_err("same file");
+        assert!(err.to_string().contains("is the input --config"), "{err}");
+        let _claim = claim_output_folder(&dir.path().join("runs/b"), "--out", &inputs)
+            .expect("a sibling is fine");
+    }
+}
