@@ -107,6 +107,45 @@ fn loss_falls_with(method: &str, top: &str, sections: &str, edit: impl Fn(&mut T
 }
 
 #[test]
+fn a_resume_after_an_input_file_changed_is_refused_naming_it() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let dynamics = dir.path().join("dynamics.toml");
+    let lag =
+        |tau: f64| format!("[[terms]]\neffect = \"accel_lag\"\nparams = {{ tau_s = {tau} }}\n");
+    std::fs::write(&dynamics, lag(0.4)).expect("written");
+    let mut config = tiny("IL", "", "");
+    config.optimizer.epochs = 3;
+    config.dynamics = Some(dynamics.clone());
+    let run = dir.path().join("run");
+    train(config.clone(), &run, false, Some(1));
+    std::fs::write(&dynamics, lag(0.6)).expect("rewritten");
+    let devices = devices(&config).expect("devices");
+    let err = Trainer::new(config.clone(), data(), devices, &run, true)
+        .err()
+        .expect("a run whose physics changed mid-run is refused");
+    let message = err.to_string();
+    assert!(
+        message.contains("dynamics") && message.contains("other contents"),
+        "{message}"
+    );
+    std::fs::write(&dynamics, lag(0.4)).expect("restored");
+    let rows = train(config, &run, true, None);
+    assert_eq!(rows.len(), 3, "restored, the run resumes");
+}
+
+#[test]
+fn a_kept_run_is_checked_against_the_config_that_would_train_it_now() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let config = tiny("IL", "", "");
+    train(config.clone(), dir.path(), false, None);
+    rtr::train::identity::check_same_run(dir.path(), &config).expect("the same run");
+    let mut other = config.clone();
+    other.optimizer.learning_rate *= 2.0;
+    let err = rtr::train::identity::check_same_run(dir.path(), &other).expect_err("another base");
+    assert!(err.to_string().contains("another config"), "{err}");
+}
+
+#[test]
 fn bc_lowers_its_loss() {
     loss_falls("BC", "", "");
 }

@@ -95,10 +95,11 @@ pub fn train_points(
         .iter()
         .map(|&(lambda, alpha)| {
             let dir = point_dir(out, lambda, alpha);
+            let config = point_config(base, lambda, alpha)?;
+            crate::train::identity::check_same_run(&dir, &config)?;
             if dir.join("policy.bpk").is_file() {
                 return Ok(dir);
             }
-            let config = point_config(base, lambda, alpha)?;
             let resume = dir.join("checkpoints").is_dir();
             let bar = progress(&format!("lambda {lambda} alpha {alpha}"));
             crate::train::session::train(config, dataset, &dir, resume, stop_after, &bar)?;

@@ -48,6 +48,10 @@ pub struct LoopState {
     /// before checksums were kept; those are loaded unchecked).
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub checksums: BTreeMap<String, String>,
+    /// sha256 of each file the run reads, by "field path" ([`super::identity`]), so `--resume`
+    /// can refuse an input whose contents changed (empty in checkpoints written before).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub input_digests: BTreeMap<String, String>,
 }
 
 fn unit_scale() -> f64 {
@@ -326,6 +330,13 @@ fn verify_checksums(dir: &Path, state: &LoopState) -> Result<()> {
     Ok(())
 }
 
+/// The loop state of the checkpoint in `dir` (without its networks).
+pub fn read_state(dir: &Path) -> Result<LoopState> {
+    let state_path = dir.join(STATE);
+    let state_text = crate::io::read_bytes(&state_path, crate::io::Format::Settings)?;
+    serde_json::from_slice(&state_text).map_err(|e| record_error(&state_path, e))
+}
+
 /// Loads the checkpoint in `dir` into fresh networks of `config` on `device`.
 pub fn load(
     dir: &Path,
@@ -334,10 +345,7 @@ pub fn load(
     policy_optimizer: ModuleOptimizer,
     value_optimizer: ModuleOptimizer,
 ) -> Result<Checkpoint> {
-    let state_path = dir.join(STATE);
-    let state_text = crate::io::read_bytes(&state_path, crate::io::Format::Settings)?;
-    let state: LoopState =
-        serde_json::from_slice(&state_text).map_err(|e| record_error(&state_path, e))?;
+    let state = read_state(dir)?;
     verify_checksums(dir, &state)?;
     let optimizer = |o: ModuleOptimizer, file: &str| -> Result<ModuleOptimizer> {
         let path = dir.join(file);

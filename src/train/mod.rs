@@ -22,6 +22,7 @@ pub mod curves;
 pub mod experience;
 pub mod gae;
 pub mod gradients;
+pub mod identity;
 pub mod imitation;
 pub mod perturbation;
 pub mod ppo;

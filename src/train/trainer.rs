@@ -229,6 +229,7 @@ impl<'d> Trainer<'d> {
         let config_toml = toml::to_string(&config)
             .map_err(|e| Error::InvalidArgument(format!("config does not serialise: {e}")))?;
         let start = checkpoint::resume_point(run_dir, resume)?;
+        let digests = super::identity::input_digests(&config)?;
         let (policy, value, policy_optimizer, value_optimizer, state) = match start {
             Some(dir) => {
                 let c = checkpoint::load(
@@ -250,7 +251,13 @@ impl<'d> Trainer<'d> {
                         run_dir.display(),
                     )));
                 }
+                super::identity::check_unchanged(run_dir, &c.state.input_digests, &digests)?;
                 check_position(&c.state, &dir, &config, data)?;
+                let mut c = c;
+                // A run recorded before digests were kept records them from here on.
+                if c.state.input_digests.is_empty() {
+                    c.state.input_digests = digests;
+                }
                 (
                     c.policy,
                     c.value,
@@ -286,6 +293,7 @@ impl<'d> Trainer<'d> {
                         config_toml,
                         policy_lr_scale: 1.0,
                         checksums: Default::default(),
+                        input_digests: digests,
                     },
                 )
             }
