@@ -436,3 +436,18 @@ fn non_utf8_bytes_name_their_line() {
     let message = Recordings::load(&path).expect_err("not UTF-8").to_string();
     assert_contains(&message, &["latin1.csv", "line 3", "0xe9", "UTF-8"]);
 }
+
+#[test]
+fn a_track_recorded_twice_under_two_ids_is_refused() {
+    let track = |id: &str, t0: f64| {
+        (0..4)
+            .map(|k| format!("{id},{},{},0,0,10,0.5,0.01\n", t0 + 0.1 * k as f64, k))
+            .collect::<String>()
+    };
+    let message = error(&format!("{HEADER}\n{}{}", track("a", 0.0), track("b", 7.0)));
+    assert_contains(&message, &["track_id b", "same track as track_id a"]);
+    // The same times and commands on another path are another track.
+    let other = track("c", 0.0).replace(",0,0,10,", ",1,0,10,");
+    Recordings::parse("rec.csv", &format!("{HEADER}\n{}{other}", track("a", 0.0)))
+        .expect("two tracks");
+}

@@ -440,3 +440,95 @@ fn walk(dir: &Path) -> Vec<PathBuf> {
     }
     out
 }
+
+/// Copies the folder `from` to `to` (a scenario set under test).
+fn copy_folder(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).expect("mkdir");
+    for entry in std::fs::read_dir(from).expect("list") {
+        let path = entry.expect("entry").path();
+        let target = to.join(path.file_name().expect("name"));
+        if path.is_dir() {
+            copy_folder(&path, &target);
+        } else {
+            std::fs::copy(&path, &target).expect("copy");
+        }
+    }
+}
+
+#[test]
+fn a_scenario_folder_is_checked_as_a_set() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let good = dir.path().join("good");
+    let status = rtr()
+        .args([
+            "scenarios",
+            "generate",
+            "--in-distribution",
+            "12",
+            "--ood",
+            "0",
+            "--out",
+        ])
+        .arg(&good)
+        .stdout(Stdio::null())
+        .status()
+        .expect("rtr runs");
+    assert!(status.success());
+    let first = |set: &str| {
+        let mut files: Vec<PathBuf> = std::fs::read_dir(good.join(set))
+            .expect("list")
+            .map(|e| e.expect("entry").path())
+            .collect();
+        files.sort();
+        files[0].clone()
+    };
+    let relabelled = |path: &Path, set: &str| {
+        let mut v: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(path).expect("read")).expect("JSON");
+        v["set"] = serde_json::Value::String(set.into());
+        v["index"] = serde_json::json!(99);
+        serde_json::to_vec_pretty(&v).expect("JSON")
+    };
+    let cases: Vec<(&str, Vec<u8>, &str)> = vec![
+        (
+            ".rtr-tmp-tmp-1-0.json",
+            std::fs::read(first("eval")).expect("read"),
+            "is hidden",
+        ),
+        (
+            "zz-copy.json",
+            std::fs::read(first("eval")).expect("read"),
+            "same scenario as",
+        ),
+        (
+            "zz-train.json",
+            std::fs::read(first("train")).expect("read"),
+            "is `train`",
+        ),
+        (
+            "zz-relabelled.json",
+            relabelled(&first("train"), "eval"),
+            "of the train set",
+        ),
+    ];
+    for (k, (name, bytes, expected)) in cases.into_iter().enumerate() {
+        let root = dir.path().join(format!("case{k}"));
+        copy_folder(&good, &root);
+        std::fs::write(root.join("eval").join(name), bytes).expect("write");
+        let root = root.to_str().expect("UTF-8 path");
+        assert_refused(
+            &[
+                "eval",
+                "--checkpoint",
+                "models/il_main",
+                "--set",
+                "longtail",
+                "--scenes",
+                "1",
+                "--scenarios",
+                root,
+            ],
+            &[name, expected],
+        );
+    }
+}

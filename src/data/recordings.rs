@@ -151,6 +151,40 @@ impl RecordedTrack {
     }
 }
 
+/// Refuses a track recorded twice under two ids (the same motion and commands, whatever the
+/// times): split into fitting and held-out tracks, one copy would be scored against the
+/// other, and the held-out error would be a training error.
+fn refuse_repeated_tracks(source: &str, tracks: &[RecordedTrack]) -> Result<()> {
+    use sha2::{Digest, Sha256};
+    let mut seen: HashMap<[u8; 32], &str> = HashMap::new();
+    for track in tracks {
+        let mut hash = Sha256::new();
+        for channel in [
+            &track.x,
+            &track.y,
+            &track.heading,
+            &track.speed,
+            &track.accel_cmd,
+            &track.steer_cmd,
+        ] {
+            for v in channel {
+                hash.update(v.to_le_bytes());
+            }
+        }
+        if let Some(first) = seen.insert(hash.finalize().into(), &track.id) {
+            return Err(Error::invalid(
+                source,
+                format!("track_id {}", track.id),
+                format!(
+                    "is the same track as track_id {first} (the same samples under another \
+                     id); a repeated track would be held out against its own copy"
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// All tracks of one recordings file.
 #[derive(Debug, Clone)]
 pub struct Recordings {
@@ -226,6 +260,7 @@ impl Recordings {
             .into_iter()
             .map(|b| b.finish(source))
             .collect::<Result<Vec<_>>>()?;
+        refuse_repeated_tracks(source, &tracks)?;
         Ok(Recordings {
             source: source.to_string(),
             tracks,

@@ -13,7 +13,7 @@ use crate::error::{Error, Result};
 use crate::map::LaneGraph;
 use crate::scenario::{
     ConcreteScenario, GenerateConfig, ScenarioSet, builtin_families, generate_sets, load_families,
-    load_scenario_dir,
+    load_scenario_set,
 };
 use crate::scene::Scene;
 
@@ -159,7 +159,7 @@ pub fn load_sets(
                 }
             };
             let scenarios = match (scenario_dir, &generated) {
-                (Some(dir), _) => load_scenario_dir(&dir.join(source.name()))?,
+                (Some(dir), _) => load_scenario_set(dir, source)?,
                 (None, Some(g)) => g.set(source).to_vec(),
                 (None, None) => Vec::new(),
             };

@@ -33,12 +33,54 @@ pub fn parse_toml<T: serde::de::DeserializeOwned>(text: &str, source_name: &str)
             .span()
             .map(|span| line_column(text, span.start))
             .unwrap_or((0, 0));
+        let mut message = e.message().to_string();
+        if let Some(hint) = single_section_hint::<T>(text, line) {
+            message = format!("{hint} (serde said: {message})");
+        }
         Error::Parse {
             source_name: source_name.to_string(),
             line,
             column,
-            message: e.message().to_string(),
+            message,
         }
+    })
+}
+
+/// A `[[name]]` header makes `name` a list of tables; where `name` is one section, serde
+/// reads the list as the section's fields in order and complains about an unrelated field.
+/// When the error at `line` lies under a `[[name]]` written once, and with `[name]` instead
+/// the document gets past that line (parses, or fails only further down), that is what to
+/// say.
+fn single_section_hint<T: serde::de::DeserializeOwned>(text: &str, line: usize) -> Option<String> {
+    let lines: Vec<&str> = text.lines().collect();
+    let header = lines
+        .get(..line.min(lines.len()))?
+        .iter()
+        .rev()
+        .map(|l| l.trim())
+        .find(|l| l.starts_with('['))?;
+    let name = header.strip_prefix("[[")?.strip_suffix("]]")?.trim();
+    if lines.iter().filter(|l| l.trim() == header).count() != 1 {
+        return None;
+    }
+    let rewritten: Vec<String> = lines
+        .iter()
+        .map(|l| match l.trim() == header {
+            true => format!("[{name}]"),
+            false => l.to_string(),
+        })
+        .collect();
+    let rewritten = rewritten.join("\n");
+    let past = match toml::from_str::<T>(&rewritten) {
+        Ok(_) => true,
+        Err(e) => e
+            .span()
+            .is_some_and(|span| line_column(&rewritten, span.start).0 > line),
+    };
+    past.then(|| {
+        format!(
+            "`{header}` makes `{name}` a list of tables, but it is one section: write `[{name}]`"
+        )
     })
 }
 
@@ -48,4 +90,47 @@ fn line_column(text: &str, offset: usize) -> (usize, usize) {
     let line = before.matches('\n').count() + 1;
     let column = before.chars().rev().take_while(|&c| c != '\n').count() + 1;
     (line, column)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Debug, serde::Deserialize)]
+    #[serde(deny_unknown_fields)]
+    #[allow(dead_code)]
+    struct Run {
+        backend: Option<String>,
+        checkpoint_every: Option<usize>,
+    }
+
+    #[derive(Debug, serde::Deserialize)]
+    #[serde(deny_unknown_fields)]
+    #[allow(dead_code)]
+    struct Clip {
+        path: String,
+        weight: f64,
+    }
+
+    #[derive(Debug, serde::Deserialize)]
+    #[serde(deny_unknown_fields)]
+    #[allow(dead_code)]
+    struct File {
+        #[serde(default)]
+        run: Option<Run>,
+        #[serde(default)]
+        clips: Vec<Clip>,
+    }
+
+    #[test]
+    fn a_section_written_as_a_list_of_tables_is_named_as_such() {
+        let err = parse_toml::<File>("[[run]]\ncheckpoint_every = 2\n", "run.toml")
+            .expect_err("a list where one section belongs");
+        assert!(err.to_string().contains("write `[run]`"), "{err}");
+        // A real list with a wrong value inside gets serde's message alone.
+        let err = parse_toml::<File>("[[clips]]\npath = \"a\"\nweight = \"x\"\n", "run.toml")
+            .expect_err("a string weight");
+        assert!(!err.to_string().contains("write `["), "{err}");
+        assert!(err.to_string().contains("line 3"), "{err}");
+    }
 }

@@ -247,18 +247,6 @@ pub fn generate_sets(
     Ok(sets)
 }
 
-/// Every `*.json` scenario in `dir`, in file-name order.
-pub fn load_scenario_dir(dir: &Path) -> Result<Vec<ConcreteScenario>> {
-    let paths: Vec<_> = crate::io::list_folder(dir)?
-        .into_iter()
-        .filter(|p| p.extension().is_some_and(|e| e == "json"))
-        .collect();
-    paths
-        .iter()
-        .map(|p| ConcreteScenario::from_json_file(p))
-        .collect()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -14,11 +14,12 @@ mod placement;
 mod range;
 mod sample;
 mod scripted_rollout;
+mod set_folder;
 
 pub use behaviour::{Action, Direction, Phase, Trigger};
 pub use catalogue::{
     DEFAULT_SEED, GenerateConfig, GeneratedSets, builtin_families, family_seed, generate_sets,
-    load_families, load_scenario_dir,
+    load_families,
 };
 pub use concrete::{
     ConcreteScenario, ReferenceRun, ScenarioAgent, ScenarioHero, ScenarioSet, hero_scripts,
@@ -34,3 +35,4 @@ pub use sample::{
     simulate_reference,
 };
 pub use scripted_rollout::rollout_with_heroes;
+pub use set_folder::load_scenario_set;

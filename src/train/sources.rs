@@ -16,7 +16,7 @@ use crate::data::{A9Dataset, SceneConfig, TrafficStatistics, bend_scenes, read_s
 use crate::error::{Error, Result};
 use crate::scenario::{
     ConcreteScenario, GenerateConfig, ScenarioSet, builtin_families, generate_sets, load_families,
-    load_scenario_dir,
+    load_scenario_set,
 };
 use crate::scene::Scene;
 
@@ -106,7 +106,7 @@ impl TrainingData {
         let mut scenarios = if !with_longtail {
             Vec::new()
         } else if let Some(dir) = &config.longtail_dir {
-            load_scenario_dir(&dir.join(ScenarioSet::Train.name()))?
+            load_scenario_set(dir, ScenarioSet::Train)?
         } else {
             let families = load_families(&builtin_families())?;
             let stats = TrafficStatistics::from_recording(&dataset.recording, &dataset.map, 1.0);

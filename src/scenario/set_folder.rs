@@ -1,0 +1,130 @@
+//! A scenario folder as `rtr scenarios generate` writes it (`train/`, `eval/`, `ood/`, one
+//! JSON file per concrete scenario), read as sets: every file of a set folder is scored or
+//! trained on, so a file that does not belong there would change the result unseen. Refused:
+//! a hidden `.json` (the leftover of an interrupted write), a scenario labelled with another
+//! set than its folder, the same scenario twice under two names, and a scenario of another
+//! set (a training scenario copied into `eval/`).
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use sha2::{Digest, Sha256};
+
+use super::{ConcreteScenario, ScenarioSet};
+use crate::error::{Error, Result};
+
+/// The scenarios of `set` in `root/<set>/`, in file-name order, checked as a set.
+pub fn load_scenario_set(root: &Path, set: ScenarioSet) -> Result<Vec<ConcreteScenario>> {
+    let dir = root.join(set.name());
+    let paths = scenario_files(&dir)?;
+    let mut seen: BTreeMap<String, PathBuf> = BTreeMap::new();
+    let mut scenarios = Vec::with_capacity(paths.len());
+    for path in paths {
+        let scenario = ConcreteScenario::from_json_file(&path)?;
+        if scenario.set != set {
+            return Err(Error::invalid(
+                path.display().to_string(),
+                "set",
+                format!(
+                    "is `{}`, but the file lies in the {} set's folder {}; a scenario is scored \
+                     in the set it was drawn for",
+                    scenario.set.name(),
+                    set.name(),
+                    dir.display()
+                ),
+            ));
+        }
+        let key = fingerprint(&scenario)?;
+        if let Some(first) = seen.insert(key, path.clone()) {
+            return Err(duplicate(&path, &first));
+        }
+        scenarios.push(scenario);
+    }
+    refuse_other_sets(root, set, &seen)?;
+    Ok(scenarios)
+}
+
+/// The `.json` files of `dir` in name order; a hidden one is refused.
+fn scenario_files(dir: &Path) -> Result<Vec<PathBuf>> {
+    let mut out = Vec::new();
+    for path in crate::io::list_folder(dir)? {
+        if path.extension().is_none_or(|e| e != "json") {
+            continue;
+        }
+        let hidden = path
+            .file_name()
+            .is_some_and(|n| n.to_string_lossy().starts_with('.'));
+        if hidden {
+            return Err(Error::invalid(
+                path.display().to_string(),
+                "file",
+                "is hidden (the leftover of an interrupted write?) in a scenario set whose every \
+                 file is scored; remove it",
+            ));
+        }
+        out.push(path);
+    }
+    Ok(out)
+}
+
+/// What makes two scenarios the same drive: everything but the labels a copy could change
+/// (set, index, seed, description).
+fn fingerprint(scenario: &ConcreteScenario) -> Result<String> {
+    let bare = ConcreteScenario {
+        set: ScenarioSet::Train,
+        index: 0,
+        seed: 0,
+        description: String::new(),
+        ..scenario.clone()
+    };
+    let json = serde_json::to_vec(&bare)
+        .map_err(|e| Error::InvalidArgument(format!("a scenario does not serialise: {e}")))?;
+    Ok(Sha256::digest(&json)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect())
+}
+
+fn duplicate(path: &Path, first: &Path) -> Error {
+    Error::invalid(
+        path.display().to_string(),
+        "scenario",
+        format!(
+            "is the same scenario as {}; a set that holds one twice weighs it twice",
+            first.display()
+        ),
+    )
+}
+
+/// Refuses a scenario of `seen` (fingerprint -> file) that is also in another set's folder
+/// under `root`. Files there that do not load are left to that set's own loading.
+fn refuse_other_sets(
+    root: &Path,
+    set: ScenarioSet,
+    seen: &BTreeMap<String, PathBuf>,
+) -> Result<()> {
+    for other in ScenarioSet::ALL.into_iter().filter(|s| *s != set) {
+        let dir = root.join(other.name());
+        if !dir.is_dir() {
+            continue;
+        }
+        for path in scenario_files(&dir).unwrap_or_default() {
+            let Ok(scenario) = ConcreteScenario::from_json_file(&path) else {
+                continue;
+            };
+            if let Some(ours) = seen.get(&fingerprint(&scenario)?) {
+                return Err(Error::invalid(
+                    ours.display().to_string(),
+                    "scenario",
+                    format!(
+                        "is the same scenario as {} of the {} set: sets must not share a \
+                         scenario (one seen in training would be scored as unseen)",
+                        path.display(),
+                        other.name()
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
