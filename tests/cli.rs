@@ -721,10 +721,12 @@ fn counts_out_of_range_are_refused_naming_the_flag() {
 fn curate_and_downstream_name_what_is_wrong() {
     let dir = tempfile::tempdir().expect("temp dir");
     let list = dir.path().join("curated.txt");
+    let empty = dir.path().join("empty");
+    std::fs::create_dir(&empty).expect("mkdir");
     let out = rtr(&[
         "curate",
         "--checkpoint",
-        dir.path().to_str().unwrap(),
+        empty.to_str().unwrap(),
         "--out",
         list.to_str().unwrap(),
     ]);

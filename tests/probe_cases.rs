@@ -370,7 +370,13 @@ fn parked_recordings_are_refused_before_any_fit() {
     let mut text = String::from("track_id,t,x,y,heading,speed,accel_cmd,steer_cmd\n");
     for track in 1..=3 {
         for i in 0..600 {
-            text.push_str(&format!("{track},{},10,5,0,0,0,0\n", i as f64 * 0.1));
+            // Three cars parked one behind the other (the same spot would be one track
+            // three times, refused as such).
+            text.push_str(&format!(
+                "{track},{},{},5,0,0,0,0\n",
+                i as f64 * 0.1,
+                10 * track
+            ));
         }
     }
     let recordings = rtr::data::Recordings::parse("parked.csv", &text).expect("it parses");

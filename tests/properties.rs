@@ -214,6 +214,54 @@ proptest! {
     }
 }
 
+/// A generated on-ramp merge: several roads joined by road links and a junction with lane
+/// links.
+fn ramp_xodr() -> &'static str {
+    static XODR: OnceLock<String> = OnceLock::new();
+    XODR.get_or_init(|| {
+        let od = ProceduralMap::preset("on_ramp_merge")
+            .and_then(|p| p.build())
+            .expect("the on-ramp preset builds");
+        to_xodr(&od)
+    })
+}
+
+proptest! {
+    #![proptest_config(config())]
+
+    /// Any road named by a link or connection and any lane id named by a lane link: a map
+    /// whose joined lanes touch, or an error naming the file (a link to a road whose end lies
+    /// elsewhere, to a lane or road that does not exist).
+    #[test]
+    fn any_link_target_gives_a_connected_map_or_an_error(
+        attribute in prop_oneof![
+            Just("elementId"), Just("incomingRoad"), Just("connectingRoad"),
+            Just("from"), Just("to"), Just("id"),
+        ],
+        occurrence in 0usize..24,
+        value in prop_oneof![(-6i32..7).prop_map(|v| v.to_string()), "[a-z0-9_]{1,4}"],
+    ) {
+        prop_assume!(ramp_xodr().contains(&format!(" {attribute}=\"")));
+        let (text, _) = with_attribute(ramp_xodr(), attribute, occurrence, &value);
+        match Map::from_xodr_str(&text, "ramp.xodr") {
+            Ok(map) => {
+                // Joined lanes touch: a successor starts within a few lane widths of where
+                // its lane ends (a link across a gap would put it on another road's far end).
+                let lanes = map.lanes();
+                for lane in lanes {
+                    let Some(end) = lane.centerline.last() else { continue };
+                    for &k in &lane.successors {
+                        let start = lanes[k].centerline[0];
+                        let gap = (end[0] - start[0]).hypot(end[1] - start[1]);
+                        prop_assert!(gap < 12.0, "lane {} -> {}: {:.1} m apart", lane.id, lanes[k].id, gap);
+                    }
+                }
+            }
+            Err(e) => prop_assert!(e.to_string().contains("ramp.xodr"), "{}", e),
+        }
+    }
+}
+
 // ---- scenario JSON ----
 
 /// One generated long-tail scenario, as JSON.

@@ -19,6 +19,7 @@ mod query;
 mod raster;
 mod reference_line;
 mod topology;
+mod topology_checks;
 mod xodr_parse;
 mod xodr_write;
 

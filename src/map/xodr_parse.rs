@@ -13,6 +13,7 @@
 //! Anything else (a 1e9 m lane, a negative width, a 1 mm arc) is nonsense that would silently
 //! distort or exhaust the map sampler.
 
+use super::topology_checks::Place;
 use roxmltree::{Document, Node};
 
 use super::opendrive::*;
@@ -86,6 +87,17 @@ const WIDTH_SLACK: f64 = 1e-6;
 
 /// Parses OpenDRIVE text; `source_name` (usually the file path) is used in error messages.
 pub fn parse_xodr(text: &str, source_name: &str) -> Result<OpenDrive> {
+    parse(text, source_name, true)
+}
+
+/// [`parse_xodr`] without the road and lane topology checks: the reader alone, for tests of
+/// documents that are only fragments of a network.
+#[cfg(test)]
+pub(super) fn read_xodr(text: &str, source_name: &str) -> Result<OpenDrive> {
+    parse(text, source_name, false)
+}
+
+fn parse(text: &str, source_name: &str, check_topology: bool) -> Result<OpenDrive> {
     let doc = crate::xml::parse_document(text, source_name)?;
     let cx = Ctx {
         source: source_name,
@@ -136,6 +148,12 @@ pub fn parse_xodr(text: &str, source_name: &str) -> Result<OpenDrive> {
                  m); expected lanes {MIN_DRIVING_WIDTH}-{MAX_LANE_WIDTH} m wide"
             ),
         ));
+    }
+    if let Some(problem) = check_topology
+        .then(|| super::topology_checks::check(&out))
+        .flatten()
+    {
+        return Err(cx.err(cx.node_of(root, &problem.place), problem.message));
     }
     Ok(out)
 }
@@ -211,6 +229,47 @@ fn sort_by_s<T>(v: &mut [T], s: impl Fn(&T) -> f64) {
 impl Ctx<'_, '_> {
     fn err(&self, node: Node, message: impl Into<String>) -> Error {
         crate::xml::error_at(self.doc, self.source, node, message)
+    }
+
+    /// The element of the document under `root` that `place` names (the nearest enclosing
+    /// one that exists), for the line of a topology problem.
+    fn node_of<'a, 'input>(&self, root: Node<'a, 'input>, place: &Place) -> Node<'a, 'input> {
+        let with_id = |parent: Node<'a, 'input>, tag: &'a str, id: &str| {
+            elements(parent, tag).find(|n| n.attribute("id").map(str::trim) == Some(id))
+        };
+        match place {
+            Place::Road(id) => with_id(root, "road", id).unwrap_or(root),
+            Place::Link { road, which } => with_id(root, "road", road)
+                .map(|r| {
+                    element(r, "link")
+                        .and_then(|l| element(l, which))
+                        .unwrap_or(r)
+                })
+                .unwrap_or(root),
+            Place::Lane {
+                road,
+                section,
+                lane,
+            } => with_id(root, "road", road)
+                .map(|r| {
+                    element(r, "lanes")
+                        .and_then(|l| elements(l, "laneSection").nth(*section))
+                        .map(|sec| {
+                            sec.descendants()
+                                .find(|n| {
+                                    n.has_tag_name("lane")
+                                        && n.attribute("id").and_then(|v| v.trim().parse().ok())
+                                            == Some(*lane)
+                                })
+                                .unwrap_or(sec)
+                        })
+                        .unwrap_or(r)
+                })
+                .unwrap_or(root),
+            Place::Connection { junction, id } => with_id(root, "junction", junction)
+                .map(|j| with_id(j, "connection", id).unwrap_or(j))
+                .unwrap_or(root),
+        }
     }
 
     fn req_str<'n>(&self, node: Node<'n, '_>, name: &str) -> Result<&'n str> {
@@ -432,6 +491,18 @@ impl Ctx<'_, '_> {
                         "road {}: <laneSection> attribute `s` is {}; expected metres in [0, {}) \
                          (the road's length)",
                         road.id, section.s, road.length
+                    ),
+                ));
+            }
+            if let Some(previous) = road.lane_sections.last()
+                && section.s <= previous.s
+            {
+                return Err(self.err(
+                    sec,
+                    format!(
+                        "road {}: <laneSection> at s = {} follows one at s = {}; expected lane \
+                         sections in increasing s",
+                        road.id, section.s, previous.s
                     ),
                 ));
             }

@@ -2,7 +2,7 @@
 
 use super::opendrive::*;
 use super::to_xodr;
-use super::xodr_parse::parse_xodr;
+use super::xodr_parse::{parse_xodr, read_xodr};
 use crate::Error;
 
 const A9: &str = concat!(
@@ -156,7 +156,8 @@ fn reads_links_junctions_and_other_geometries() {
 <junction id="j" name="x"><connection id="0" incomingRoad="a" connectingRoad="c" contactPoint="end">
  <laneLink from="-1" to="1"/></connection></junction>
 </OpenDRIVE>"#;
-    let od = parse_xodr(text, "t").expect("parses");
+    // A fragment: roads b and c are not in it, so only the reader is asked.
+    let od = read_xodr(text, "t").expect("parses");
     let r = &od.roads[0];
     assert_eq!(
         r.successor.as_ref().and_then(|l| l.contact_point),
@@ -182,9 +183,14 @@ fn reads_links_junctions_and_other_geometries() {
     assert_eq!(lane.speeds[0].max, None);
     assert_eq!(lane.kind, LaneType::OnRamp);
     assert_eq!(od.junctions[0].connections[0].lane_links, vec![(-1, 1)]);
-    assert_eq!(parse_xodr(&to_xodr(&od), "again").expect("round trip"), od);
+    assert_eq!(read_xodr(&to_xodr(&od), "again").expect("round trip"), od);
     let no_contact = text.replace(" contactPoint=\"end\"/></link>", "/></link>");
     assert!(parse_err(&no_contact).1.contains("contactPoint"));
+    let (_, message) = parse_err(text);
+    assert!(
+        message.contains("road \"b\", which does not exist"),
+        "{message}"
+    );
 }
 
 /// Physically absurd maps are refused where they are read, naming the element's line: a lane
@@ -222,4 +228,135 @@ fn absurd_geometry_is_refused_with_its_line() {
     assert!(parse_xodr(&arc.replace("1000", "0.01"), "t").is_ok());
     let long = arc.replace("length=\"10\" junction", "length=\"1e9\" junction");
     assert!(parse_err(&long).1.contains("(0, 100000]"));
+}
+
+/// A road `id` of `length` m from (`x`, 0) heading +x, with `link` inside its `<link>`, and
+/// driving lanes -1 and -2 (3.5 m) whose `<link>` holds `lane_link`.
+fn straight(id: &str, x: f64, length: f64, link: &str, lane_link: &str) -> String {
+    format!(
+        r#"<road id="{id}" length="{length}" junction="-1"><link>{link}</link>
+ <planView><geometry s="0" x="{x}" y="0" hdg="0" length="{length}"><line/></geometry></planView>
+ <lanes><laneSection s="0"><center><lane id="0" type="none"/></center><right>
+  <lane id="-1" type="driving"><link>{lane_link}</link><width sOffset="0" a="3.5" b="0" c="0" d="0"/></lane>
+  <lane id="-2" type="driving"><width sOffset="0" a="3.5" b="0" c="0" d="0"/></lane>
+ </right></laneSection></lanes>
+</road>
+"#
+    )
+}
+
+fn document(body: &str) -> String {
+    format!("<OpenDRIVE><header/>\n{body}</OpenDRIVE>")
+}
+
+/// The 1-based line of the first line of `text` containing `needle`.
+fn line_of(text: &str, needle: &str) -> usize {
+    text.lines()
+        .position(|l| l.contains(needle))
+        .expect("in the text")
+        + 1
+}
+
+#[test]
+fn linked_road_ends_must_meet() {
+    let next = r#"<successor elementType="road" elementId="b" contactPoint="start"/>"#;
+    let back = r#"<predecessor elementType="road" elementId="a" contactPoint="end"/>"#;
+    let joined =
+        document(&(straight("a", 0.0, 100.0, next, "") + &straight("b", 100.0, 50.0, back, "")));
+    parse_xodr(&joined, "t").expect("roads that meet");
+    let gap =
+        document(&(straight("a", 0.0, 100.0, next, "") + &straight("b", 150.0, 50.0, back, "")));
+    let (line, message) = parse_err(&gap);
+    assert!(message.contains("50.00 m apart"), "{message}");
+    assert_eq!(line, line_of(&gap, "<successor"));
+    // A road that is its own successor closes on itself only if its ends meet.
+    let own = r#"<successor elementType="road" elementId="a" contactPoint="start"/>"#;
+    let (_, message) = parse_err(&document(&straight("a", 0.0, 100.0, own, "")));
+    assert!(message.contains("100.00 m apart"), "{message}");
+}
+
+#[test]
+fn every_linked_lane_must_exist() {
+    let next = r#"<successor elementType="road" elementId="b" contactPoint="start"/>"#;
+    let to_missing = r#"<successor id="-3"/>"#;
+    let text = document(
+        &(straight("a", 0.0, 100.0, next, to_missing) + &straight("b", 100.0, 50.0, "", "")),
+    );
+    let (line, message) = parse_err(&text);
+    assert!(message.contains("successor lane -3"), "{message}");
+    assert!(message.contains("road b does not have"), "{message}");
+    assert_eq!(line, line_of(&text, "<successor id=\"-3\""));
+    // A lane link out of a road end that links nowhere points at nothing.
+    let (_, message) = parse_err(&document(&straight("a", 0.0, 100.0, "", to_missing)));
+    assert!(message.contains("has no successor link"), "{message}");
+    // A junction's lane link to a lane its connecting road lacks.
+    let into = r#"<successor elementType="junction" elementId="j"/>"#;
+    let junction = r#"<junction id="j" name="j"><connection id="0" incomingRoad="a" connectingRoad="c" contactPoint="start">
+ <laneLink from="-1" to="-5"/></connection></junction>
+"#;
+    let text = document(
+        &(straight("a", 0.0, 100.0, into, "") + &straight("c", 100.0, 20.0, "", "") + junction),
+    );
+    let (line, message) = parse_err(&text);
+    assert!(
+        message.contains("lane -5 of connecting road c"),
+        "{message}"
+    );
+    assert_eq!(line, line_of(&text, "<connection"));
+}
+
+#[test]
+fn a_lane_wider_than_its_bend_and_a_looping_road_are_refused() {
+    // Left lanes 1 and 2 (3.5 m each) on a left bend of radius 5 m: the outer one folds.
+    let tight = document(
+        r#"<road id="a" length="10" junction="-1">
+ <planView><geometry s="0" x="0" y="0" hdg="0" length="10"><arc curvature="0.2"/></geometry></planView>
+ <lanes><laneSection s="0"><left>
+  <lane id="2" type="driving"><width sOffset="0" a="3.5" b="0" c="0" d="0"/></lane>
+  <lane id="1" type="driving"><width sOffset="0" a="3.5" b="0" c="0" d="0"/></lane>
+ </left><center><lane id="0" type="none"/></center></laneSection></lanes>
+</road>
+"#,
+    );
+    let (line, message) = parse_err(&tight);
+    assert!(message.contains("fold over itself"), "{message}");
+    assert_eq!(line, line_of(&tight, "<lane id=\"2\""));
+    // 80 m east, a 270 degree left turn of radius 20 m, 40 m south: crosses the first line.
+    let arc = 1.5 * std::f64::consts::PI * 20.0;
+    let looping = document(&format!(
+        r#"<road id="loop" length="{}" junction="-1">
+ <planView>
+  <geometry s="0" x="0" y="0" hdg="0" length="80"><line/></geometry>
+  <geometry s="80" x="80" y="0" hdg="0" length="{arc}"><arc curvature="0.05"/></geometry>
+  <geometry s="{}" x="60" y="20" hdg="{}" length="40"><line/></geometry>
+ </planView>
+ <lanes><laneSection s="0"><center><lane id="0" type="none"/></center><right>
+  <lane id="-1" type="driving"><width sOffset="0" a="3.5" b="0" c="0" d="0"/></lane>
+ </right></laneSection></lanes>
+</road>
+"#,
+        120.0 + arc,
+        80.0 + arc,
+        1.5 * std::f64::consts::PI
+    ));
+    let (line, message) = parse_err(&looping);
+    assert!(message.contains("crosses itself"), "{message}");
+    assert_eq!(line, line_of(&looping, "<road id=\"loop\""));
+}
+
+#[test]
+fn lane_sections_out_of_order_are_refused() {
+    let a9 = a9_text();
+    let at = a9.find("<laneSection").expect("a lane section");
+    let end = a9[at..].find("</laneSection>").expect("its end") + at + "</laneSection>".len();
+    let section = &a9[at..end];
+    let later = section.replacen("s=\"0", "s=\"100", 1);
+    assert_ne!(later, section, "the A9 section starts at s = 0");
+    let text = format!("{}{later}{section}{}", &a9[..at], &a9[end..]);
+    let (line, message) = parse_err(&text);
+    assert!(message.contains("increasing s"), "{message}");
+    assert!(
+        line > line_of(&text, "<laneSection"),
+        "the second section's line"
+    );
 }

@@ -8,7 +8,7 @@ use rtr::backend::Backend;
 use rtr::data::{SceneConfig, bend_scenes, commonroad};
 use rtr::eval::study::{Entry, evaluate_entries, load_entries, write_study};
 use rtr::eval::{EvalConfig, EvalScenes, EvalSet, load_sets, markdown_table};
-use rtr::io::{Inputs, StagedFolder, claim_output_folder};
+use rtr::io::{FolderClaim, Inputs, StagedFolder, claim_output_folder};
 use rtr::{Error, Result};
 
 use super::args::{DataArgs, count};
@@ -64,12 +64,8 @@ pub struct EvalArgs {
     data: DataArgs,
 }
 
-pub fn run(args: EvalArgs) -> Result<()> {
-    if args.checkpoints.is_empty() && !args.idm {
-        return Err(Error::InvalidArgument(
-            "nothing to evaluate: pass --checkpoint DIR (repeatable) and/or --idm".into(),
-        ));
-    }
+/// Checks the inputs and claims `--out` (if given) before any work.
+fn claim_output(args: &EvalArgs) -> Result<Option<FolderClaim>> {
     for path in &args.checkpoints {
         rtr::io::check_input_path(path, "--checkpoint")?;
     }
@@ -78,10 +74,19 @@ pub fn run(args: EvalArgs) -> Result<()> {
         .with_all("--scenarios", &args.scenarios)
         .with_all("--commonroad", &args.commonroad)
         .with("--data", args.data.dir());
-    let _claim = match &args.out {
-        Some(out) => Some(claim_output_folder(out, "--out", &inputs)?),
-        None => None,
-    };
+    args.out
+        .as_ref()
+        .map(|out| claim_output_folder(out, "--out", &inputs))
+        .transpose()
+}
+
+pub fn run(args: EvalArgs) -> Result<()> {
+    if args.checkpoints.is_empty() && !args.idm {
+        return Err(Error::InvalidArgument(
+            "nothing to evaluate: pass --checkpoint DIR (repeatable) and/or --idm".into(),
+        ));
+    }
+    let _claim = claim_output(&args)?;
     if let Some(problem) = args.a9_bend.and_then(rtr::map::bend_curvature_problem) {
         return Err(Error::InvalidArgument(format!("--a9-bend {problem}")));
     }
