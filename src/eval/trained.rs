@@ -39,6 +39,9 @@ fn locate(path: &Path) -> Result<(PathBuf, PathBuf)> {
     } else {
         (path.to_path_buf(), path.join(POLICY))
     };
+    if let Some(why) = crate::io::not_regular(&policy) {
+        return Err(Error::invalid(policy.display().to_string(), "file", why));
+    }
     if !policy.is_file() {
         return Err(Error::InvalidArgument(format!(
             "{}: no {POLICY} there (a finished run folder, models/<method>/, or a \

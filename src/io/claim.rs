@@ -1,6 +1,6 @@
 //! Claiming an output before any work: it is writable, it is not one of the command's inputs
-//! (nor contains one, nor lies inside an input folder), and an output folder is locked for the
-//! command's lifetime, so a second rtr process writing there is refused naming the first.
+//! (nor contains one, nor lies inside an input folder), and it is locked for the command's
+//! lifetime, so a second rtr process writing there is refused naming the first.
 
 use std::fs::File;
 use std::io::Write;
@@ -36,26 +36,43 @@ impl Inputs {
 }
 
 /// Checks, before any work, that the file `path` (given with `flag`) can be written and is
-/// none of `inputs`, nor inside an input folder.
-pub fn check_output_file(path: &Path, flag: &str, inputs: &Inputs) -> Result<()> {
+/// none of `inputs`, nor inside an input folder; then locks it against other rtr processes
+/// until the returned claim is dropped.
+pub fn claim_output_file(path: &Path, flag: &str, inputs: &Inputs) -> Result<OutputClaim> {
     check_output(path, OutputKind::File, flag)?;
-    refuse_overlap(path, flag, inputs)
+    refuse_overlap(path, flag, inputs)?;
+    lock(path, flag)
 }
 
-/// A folder claimed by [`claim_output_folder`]; the claim lasts as long as this value.
-#[must_use = "the output folder is locked only while its claim lives"]
+/// An output claimed by [`claim_output_file`] or [`claim_output_folder`]; the claim lasts as
+/// long as this value.
+#[must_use = "the output is locked only while its claim lives"]
 #[derive(Debug)]
-pub struct FolderClaim {
-    _lock: File,
+pub struct OutputClaim {
+    lock: File,
+    path: PathBuf,
+}
+
+impl Drop for OutputClaim {
+    fn drop(&mut self) {
+        // Removed while still locked, so no one can lock this file after we let go of it
+        // (a waiting process notices the path has gone and opens a fresh one).
+        let _ = std::fs::remove_file(&self.path);
+        let _ = self.lock.unlock();
+    }
 }
 
 /// Checks, before any work, that the folder `path` (given with `flag`) can be written, is
 /// none of `inputs`, holds none and lies in none; then locks it against other rtr processes
 /// until the returned claim is dropped. A second writer gets an error naming the first.
-pub fn claim_output_folder(path: &Path, flag: &str, inputs: &Inputs) -> Result<FolderClaim> {
+pub fn claim_output_folder(path: &Path, flag: &str, inputs: &Inputs) -> Result<OutputClaim> {
     check_output(path, OutputKind::Folder, flag)?;
     refuse_overlap(path, flag, inputs)?;
-    lock(path, flag)
+    let claim = lock(path, flag)?;
+    // Under the lock: what a killed writer of this folder left is nobody's.
+    super::output::remove_stale_temporaries(folder_of(path));
+    super::output::remove_stale_temporaries(path);
+    Ok(claim)
 }
 
 /// `path` made absolute with every existing part's links resolved (an output need not exist
@@ -102,47 +119,64 @@ fn refuse_overlap(output: &Path, flag: &str, inputs: &Inputs) -> Result<()> {
     Ok(())
 }
 
-/// Locks `target` through a lock file beside it (the folder itself may be replaced or not
-/// exist yet). The operating system releases the lock when the process ends, however it ends.
-fn lock(target: &Path, flag: &str) -> Result<FolderClaim> {
+/// Locks `target` through a lock file beside it (the target may be replaced or not exist
+/// yet). The operating system releases the lock when the process ends, however it ends; the
+/// file itself is removed on release.
+fn lock(target: &Path, flag: &str) -> Result<OutputClaim> {
     let parent = folder_of(target);
     create_folder(parent)?;
     let path = parent.join(lock_name(target));
-    let mut file = std::fs::OpenOptions::new()
-        .read(true)
-        .write(true)
-        .create(true)
-        .truncate(false)
-        .open(&path)
-        .map_err(|e| Error::io(&path, e))?;
-    match file.try_lock() {
-        Ok(()) => {
-            let holder = format!(
-                "pid {}: {}",
-                std::process::id(),
-                std::env::args().collect::<Vec<_>>().join(" ")
-            );
-            // The holder is only for messages: a failure to record it does not matter.
-            let _ = file
-                .set_len(0)
-                .and_then(|()| file.write_all(holder.as_bytes()));
-            Ok(FolderClaim { _lock: file })
+    loop {
+        let mut file = std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(false)
+            .open(&path)
+            .map_err(|e| Error::io(&path, e))?;
+        match file.try_lock() {
+            Ok(()) => {}
+            Err(std::fs::TryLockError::WouldBlock) => return Err(held(target, flag, &path)),
+            Err(std::fs::TryLockError::Error(e)) => return Err(Error::io(&path, e)),
         }
-        Err(std::fs::TryLockError::WouldBlock) => {
-            let holder = std::fs::read_to_string(&path).unwrap_or_default();
-            Err(Error::InvalidArgument(format!(
-                "{flag} {}: another rtr process is writing there ({}); wait for it to end or \
-                 choose another {flag}",
-                target.display(),
-                if holder.is_empty() {
-                    "unknown"
-                } else {
-                    holder.trim()
-                }
-            )))
+        // Locked a file its releaser had already removed: take the path's present one.
+        if !same_file(&file, &path) {
+            continue;
         }
-        Err(std::fs::TryLockError::Error(e)) => Err(Error::io(&path, e)),
+        let holder = format!(
+            "pid {}: {}",
+            std::process::id(),
+            std::env::args().collect::<Vec<_>>().join(" ")
+        );
+        // The holder is only for messages: a failure to record it does not matter.
+        let _ = file
+            .set_len(0)
+            .and_then(|()| file.write_all(holder.as_bytes()));
+        return Ok(OutputClaim { lock: file, path });
     }
+}
+
+/// Whether the open `file` is the one at `path` now.
+fn same_file(file: &File, path: &Path) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    match (file.metadata(), path.metadata()) {
+        (Ok(a), Ok(b)) => a.dev() == b.dev() && a.ino() == b.ino(),
+        _ => false,
+    }
+}
+
+fn held(target: &Path, flag: &str, lock_path: &Path) -> Error {
+    let holder = std::fs::read_to_string(lock_path).unwrap_or_default();
+    Error::InvalidArgument(format!(
+        "{flag} {}: another rtr process is writing there ({}); wait for it to end or choose \
+         another {flag}",
+        target.display(),
+        if holder.trim().is_empty() {
+            "unknown"
+        } else {
+            holder.trim()
+        }
+    ))
 }
 
 /// The lock file's name for `target`: hidden, and short whatever the folder's name.
@@ -180,7 +214,21 @@ mod tests {
             "{err}"
         );
         drop(first);
+        let lock_files = || {
+            std::fs::read_dir(dir.path())
+                .expect("list")
+                .filter(|e| {
+                    e.as_ref()
+                        .is_ok_and(|e| e.file_name().to_string_lossy().starts_with(".rtr-lock"))
+                })
+                .count()
+        };
+        assert_eq!(lock_files(), 0, "the lock file goes with its claim");
         let _claim = claim_output_folder(&out, "--out", &Inputs::new()).expect("free again");
+        let file = dir.path().join("report.json");
+        let _report = claim_output_file(&file, "--report", &Inputs::new()).expect("a file");
+        let err = claim_output_file(&file, "--report", &Inputs::new()).expect_err("twice");
+        assert!(err.to_string().contains("another rtr process"), "{err}");
     }
 
     #[test]
@@ -202,7 +250,7 @@ mod tests {
             let err = claim_output_folder(&out, "--out", &inputs).expect_err("overlap");
             assert!(err.to_string().contains(why), "{err}");
         }
-        let err = check_output_file(&run_file, "--report", &inputs).expect_err("same file");
+        let err = claim_output_file(&run_file, "--report", &inputs).expect_err("same file");
         assert!(err.to_string().contains("is the input --config"), "{err}");
         let _claim = claim_output_folder(&dir.path().join("runs/b"), "--out", &inputs)
             .expect("a sibling is fine");

@@ -93,6 +93,11 @@ pub fn check_input_path(path: &Path, flag: &str) -> Result<()> {
 /// Opens `path` for reading if it is a regular file. The open itself cannot block: a FIFO
 /// is opened non-blocking and then refused by its type.
 pub fn open_regular(path: &Path) -> Result<File> {
+    // Classified before the open: opening a socket fails with a bare "no such device", a
+    // dangling link with "no such file".
+    if let Some(why) = not_regular(path) {
+        return Err(Error::invalid(path.display().to_string(), "file", why));
+    }
     let mut options = std::fs::OpenOptions::new();
     options.read(true);
     #[cfg(unix)]
@@ -110,6 +115,19 @@ pub fn open_regular(path: &Path) -> Result<File> {
         ));
     }
     Ok(file)
+}
+
+/// Why `path` is not a regular file that can be read (a folder, FIFO, device, socket, a
+/// dangling link), or `None` when it is one or does not exist at all.
+pub fn not_regular(path: &Path) -> Option<String> {
+    match path.metadata() {
+        Ok(m) if m.is_file() => None,
+        Ok(m) => Some(format!("is {}; expected a regular file", kind_of(&m))),
+        Err(_) if path.symlink_metadata().is_ok() => {
+            Some("is a link to nothing (dangling symlink); expected a regular file".into())
+        }
+        Err(_) => None,
+    }
 }
 
 /// What a non-regular file is, for messages.

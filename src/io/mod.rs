@@ -11,16 +11,16 @@ mod output;
 mod process_files;
 mod staged;
 
-pub use claim::{FolderClaim, Inputs, check_output_file, claim_output_folder};
+pub use claim::{Inputs, OutputClaim, claim_output_file, claim_output_folder};
 pub use input::{
-    Capped, Format, capped, check_input_file, check_input_path, list_folder, open_regular,
-    read_bytes, read_error, read_text, utf8_text,
+    Capped, Format, capped, check_input_file, check_input_path, list_folder, not_regular,
+    open_regular, read_bytes, read_error, read_text, utf8_text,
 };
-pub(crate) use output::temp_name;
 pub use output::{
     atomic_write, atomic_write_with, create_file, create_folder, is_temporary_name, remove_file,
     remove_folder, rename, write_new,
 };
+pub(crate) use output::{remove_stale_temporaries, temp_name};
 pub use process_files::{read_process_file, write_process_file};
 pub use staged::StagedFolder;
 
@@ -34,8 +34,14 @@ pub fn parse_toml<T: serde::de::DeserializeOwned>(text: &str, source_name: &str)
             .map(|span| line_column(text, span.start))
             .unwrap_or((0, 0));
         let mut message = e.message().to_string();
-        if let Some(hint) = single_section_hint::<T>(text, line) {
-            message = format!("{hint} (serde said: {message})");
+        if let Some(hint) = table_kind_hint::<T>(text, line) {
+            // serde's own words describe the misread, not the mistake.
+            message = hint;
+        } else if message.starts_with("duplicate key")
+            && let Some(span) = e.span()
+        {
+            let key = text[span].trim().trim_matches(['[', ']']);
+            message = format!("`{key}` is defined twice; expected each key and table once");
         }
         Error::Parse {
             source_name: source_name.to_string(),
@@ -46,12 +52,11 @@ pub fn parse_toml<T: serde::de::DeserializeOwned>(text: &str, source_name: &str)
     })
 }
 
-/// A `[[name]]` header makes `name` a list of tables; where `name` is one section, serde
-/// reads the list as the section's fields in order and complains about an unrelated field.
-/// When the error at `line` lies under a `[[name]]` written once, and with `[name]` instead
-/// the document gets past that line (parses, or fails only further down), that is what to
-/// say.
-fn single_section_hint<T: serde::de::DeserializeOwned>(text: &str, line: usize) -> Option<String> {
+/// A `[[name]]` header makes `name` a list of tables and `[name]` one table; written the
+/// wrong way round, serde reads one as the other and complains about something unrelated.
+/// When the error at `line` lies under such a header written once, and with the other
+/// bracketing the document gets past that line (parses, or fails only further down), say so.
+fn table_kind_hint<T: serde::de::DeserializeOwned>(text: &str, line: usize) -> Option<String> {
     let lines: Vec<&str> = text.lines().collect();
     let header = lines
         .get(..line.min(lines.len()))?
@@ -59,14 +64,28 @@ fn single_section_hint<T: serde::de::DeserializeOwned>(text: &str, line: usize) 
         .rev()
         .map(|l| l.trim())
         .find(|l| l.starts_with('['))?;
-    let name = header.strip_prefix("[[")?.strip_suffix("]]")?.trim();
+    let (name, other, what) = match header.strip_prefix("[[").and_then(|h| h.strip_suffix("]]")) {
+        Some(name) => (
+            name.trim(),
+            format!("[{}]", name.trim()),
+            "a list of tables, but it is one section",
+        ),
+        None => {
+            let name = header.strip_prefix('[')?.strip_suffix(']')?.trim();
+            (
+                name,
+                format!("[[{name}]]"),
+                "one table, but it is a list (one table per entry)",
+            )
+        }
+    };
     if lines.iter().filter(|l| l.trim() == header).count() != 1 {
         return None;
     }
     let rewritten: Vec<String> = lines
         .iter()
         .map(|l| match l.trim() == header {
-            true => format!("[{name}]"),
+            true => other.clone(),
             false => l.to_string(),
         })
         .collect();
@@ -77,11 +96,7 @@ fn single_section_hint<T: serde::de::DeserializeOwned>(text: &str, line: usize) 
             .span()
             .is_some_and(|span| line_column(&rewritten, span.start).0 > line),
     };
-    past.then(|| {
-        format!(
-            "`{header}` makes `{name}` a list of tables, but it is one section: write `[{name}]`"
-        )
-    })
+    past.then(|| format!("`{header}` makes `{name}` {what}: write `{other}`"))
 }
 
 /// 1-based line and column of byte `offset` in `text`.
@@ -120,6 +135,22 @@ mod tests {
         run: Option<Run>,
         #[serde(default)]
         clips: Vec<Clip>,
+    }
+
+    #[derive(Debug, serde::Deserialize)]
+    #[serde(deny_unknown_fields)]
+    #[allow(dead_code)]
+    struct Dynamics {
+        terms: Vec<Clip>,
+    }
+
+    #[test]
+    fn a_list_written_as_one_table_and_a_key_twice_are_named_as_such() {
+        let err = parse_toml::<Dynamics>("[terms]\npath = \"a\"\nweight = 1.0\n", "d.toml")
+            .expect_err("one table where a list belongs");
+        assert!(err.to_string().contains("write `[[terms]]`"), "{err}");
+        let err = parse_toml::<File>("[run]\n[run]\n", "run.toml").expect_err("twice");
+        assert!(err.to_string().contains("`run` is defined twice"), "{err}");
     }
 
     #[test]

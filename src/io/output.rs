@@ -21,12 +21,52 @@ pub(crate) fn temp_name(folder: &Path, what: &str, extension: Option<&str>) -> P
     })
 }
 
+/// The longest file name (bytes) common file systems take.
+const MAX_NAME_BYTES: usize = 255;
+
 /// How every temporary name of rtr starts.
 const TEMPORARY_PREFIX: &str = ".rtr-tmp-";
 
 /// Whether `name` is one of rtr's temporary names (a leftover of a killed run).
 pub fn is_temporary_name(name: &str) -> bool {
     name.starts_with(TEMPORARY_PREFIX)
+}
+
+/// Removes from `folder` the temporary files and folders that rtr processes which no longer
+/// run left behind (killed mid-write). Those of live processes are theirs and stay.
+pub(crate) fn remove_stale_temporaries(folder: &Path) {
+    let Ok(entries) = std::fs::read_dir(folder) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        let Some(rest) = name.strip_prefix(TEMPORARY_PREFIX) else {
+            continue;
+        };
+        // `{what}-{pid}-{n}[.ext]`
+        let Some(pid) = rest.split('-').nth(1).and_then(|p| p.parse::<u32>().ok()) else {
+            continue;
+        };
+        if pid == std::process::id() || process_runs(pid) {
+            continue;
+        }
+        let path = entry.path();
+        let _ = if path.is_dir() {
+            std::fs::remove_dir_all(&path)
+        } else {
+            std::fs::remove_file(&path)
+        };
+    }
+}
+
+/// Whether a process with id `pid` runs (a signal 0 reaches it, or it exists but is not ours).
+fn process_runs(pid: u32) -> bool {
+    let Ok(pid) = libc::pid_t::try_from(pid) else {
+        return false;
+    };
+    // SAFETY: signal 0 only checks that the process exists and may be signalled.
+    let result = unsafe { libc::kill(pid, 0) };
+    result == 0 || std::io::Error::last_os_error().raw_os_error() != Some(libc::ESRCH)
 }
 
 /// The folder `path` lives in (`.` for a bare file name).
@@ -135,6 +175,12 @@ pub(super) fn check_output(path: &Path, kind: OutputKind, flag: &str) -> Result<
             path.display()
         )))
     };
+    if let Some(name) = path.file_name().filter(|n| n.len() > MAX_NAME_BYTES) {
+        return fail(format!(
+            "its name is {} bytes long; file systems allow at most {MAX_NAME_BYTES}",
+            name.len()
+        ));
+    }
     if path.metadata().is_err() && path.symlink_metadata().is_ok() {
         return fail(
             "is a link to nothing (dangling symlink); remove it or name another path".into(),

@@ -34,6 +34,7 @@ impl StagedFolder {
             _ => PathBuf::from("."),
         };
         let created = create_missing(&parent)?;
+        super::output::remove_stale_temporaries(&parent);
         let staged = Self {
             target: target.to_path_buf(),
             staging: super::output::temp_name(&parent, "staging", None),
@@ -306,6 +307,22 @@ mod tests {
             std::fs::read(target.join("results.json")).expect("read"),
             b"2"
         );
+    }
+
+    #[test]
+    fn what_a_killed_writer_left_is_removed_and_a_live_ones_is_not() {
+        let root = tempfile::tempdir().expect("temp dir");
+        // No process has pid 0x7ffffffe; pid 1 always runs.
+        let dead = root.path().join(".rtr-tmp-staging-2147483646-0");
+        let live = root.path().join(".rtr-tmp-tmp-1-0.json");
+        std::fs::create_dir(&dead).expect("mkdir");
+        std::fs::write(dead.join("results.json"), b"half").expect("write");
+        std::fs::write(&live, b"busy").expect("write");
+        let staged = StagedFolder::new(&root.path().join("out")).expect("stage");
+        std::fs::write(staged.path().join("a.json"), b"{}").expect("write");
+        staged.commit().expect("commit");
+        assert!(!dead.exists(), "the killed writer's staging folder is gone");
+        assert!(live.exists(), "a live writer's file stays");
     }
 
     #[test]

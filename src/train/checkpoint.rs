@@ -249,6 +249,7 @@ pub fn save(
     let root = run_dir.join("checkpoints");
     let name = format!("iter-{:06}", state.iteration);
     let dir = root.join(&name);
+    crate::io::remove_stale_temporaries(&root);
     let tmp = crate::io::temp_name(&root, "checkpoint", None);
     crate::io::create_folder(&tmp)?;
     let optimizer_bytes = |o: &ModuleOptimizer, path: &Path| -> Result<Vec<u8>> {

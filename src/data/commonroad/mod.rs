@@ -149,9 +149,16 @@ pub fn commonroad_files(path: &Path) -> Result<Vec<PathBuf>> {
         .into_iter()
         .filter(|p| {
             let name = p.file_name().and_then(|n| n.to_str()).unwrap_or("");
-            p.is_file() && (name.ends_with(".xml") || name.ends_with(".xml.gz"))
+            name.ends_with(".xml") || name.ends_with(".xml.gz")
         })
         .collect();
+    // A clip-named entry that is not a readable file is refused, not skipped: the folder is
+    // read as a set.
+    for file in &files {
+        if let Some(why) = crate::io::not_regular(file) {
+            return Err(Error::invalid(file.display().to_string(), "file", why));
+        }
+    }
     if files.is_empty() {
         return Err(Error::invalid(
             path.display().to_string(),

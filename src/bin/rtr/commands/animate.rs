@@ -3,7 +3,7 @@
 
 use rtr::eval::study::Entry;
 use rtr::eval::{EvalPolicy, EvalScenes, EvalSet, TrainedPolicy, WatchedRollout, watch_rollout};
-use rtr::io::check_output_file;
+use rtr::io::claim_output_file;
 use rtr::render::{RenderOptions, animate_scene, check_animation_target, window_focus};
 use rtr::scene::Scene;
 use rtr::sim::Dynamics;
@@ -33,7 +33,7 @@ pub fn run(args: &RenderArgs) -> Result<()> {
         Error::InvalidArgument(why) => Error::InvalidArgument(format!("--out {why}")),
         other => other,
     })?;
-    check_output_file(&args.out, "--out", &args.inputs())?;
+    let _claim = claim_output_file(&args.out, "--out", &args.inputs())?;
     let driver = load_driver(args)?;
     // The view: where every car of a recorded scene drives, in the log and in the rollout; a
     // scenario's target and heroes only (its other cars spread over a kilometre of road).

@@ -6,7 +6,7 @@ use clap::{Args, ValueEnum};
 
 use rtr::backend::Backend;
 use rtr::data::{A9Dataset, a9};
-use rtr::io::{Inputs, check_output_file};
+use rtr::io::{Inputs, OutputClaim, claim_output_file};
 use rtr::map::{Map, ProceduralMap};
 use rtr::render::{MAX_WIDTH_PX, RenderOptions, check_target, output_paths};
 use rtr::{Error, Result};
@@ -104,20 +104,26 @@ pub fn device_count(devices: Option<usize>, backend: Backend) -> Result<usize> {
 }
 
 /// The image files an `--out` names (itself if it has an extension, else PREFIX.png and
-/// PREFIX.svg), each checked before any work: a .png or .svg name, writable.
-pub fn image_targets(out: &Path, opts: &RenderOptions, inputs: &Inputs) -> Result<Vec<PathBuf>> {
+/// PREFIX.svg), each checked and claimed before any work: a .png or .svg name, writable, none
+/// of `inputs`. The claims last as long as the returned values.
+pub fn image_targets(
+    out: &Path,
+    opts: &RenderOptions,
+    inputs: &Inputs,
+) -> Result<(Vec<PathBuf>, Vec<OutputClaim>)> {
     let paths = match out.extension() {
         Some(_) => vec![out.to_path_buf()],
         None => output_paths(out).to_vec(),
     };
+    let mut claims = Vec::new();
     for path in &paths {
         check_target(path, opts).map_err(|e| match e {
             Error::InvalidArgument(why) => Error::InvalidArgument(format!("--out {why}")),
             other => other,
         })?;
-        check_output_file(path, "--out", inputs)?;
+        claims.push(claim_output_file(path, "--out", inputs)?);
     }
-    Ok(paths)
+    Ok((paths, claims))
 }
 
 /// `--width` of a picture, in pixels.

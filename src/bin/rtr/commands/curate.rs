@@ -8,7 +8,7 @@ use rtr::backend::Backend;
 use rtr::data::SceneConfig;
 use rtr::eval::curate::{SceneOutcome, scene_outcomes};
 use rtr::eval::{EvalConfig, TrainedPolicy};
-use rtr::io::{Inputs, check_output_file};
+use rtr::io::{Inputs, claim_output_file};
 use rtr::{Error, Result};
 
 use super::args::{DataArgs, count};
@@ -36,7 +36,7 @@ pub fn run(args: CurateArgs) -> Result<()> {
     let inputs = Inputs::new()
         .with("--checkpoint", &args.checkpoint)
         .with("--data", args.data.dir());
-    check_output_file(&args.out, "--out", &inputs)?;
+    let _claim = claim_output_file(&args.out, "--out", &inputs)?;
     let device = args.backend.device(false)?;
     let trained = TrainedPolicy::load(&args.checkpoint, &device)?;
     let dataset = args.data.load()?;

@@ -35,6 +35,9 @@ pub fn run(command: DataCommand) -> Result<()> {
         commonroad_speed_limit,
         json,
     } = command;
+    for path in &commonroad {
+        rtr::io::check_input_path(path, "--commonroad")?;
+    }
     if !commonroad.is_empty() {
         let clips = commonroad::load_commonroad(&commonroad, commonroad_speed_limit)?;
         let (_, summaries) = commonroad::commonroad_scenes(&clips, &SceneConfig::default())?;

@@ -8,7 +8,7 @@ use rtr::backend::Backend;
 use rtr::data::{SceneConfig, bend_scenes, commonroad};
 use rtr::eval::study::{Entry, evaluate_entries, load_entries, write_study};
 use rtr::eval::{EvalConfig, EvalScenes, EvalSet, load_sets, markdown_table};
-use rtr::io::{FolderClaim, Inputs, StagedFolder, claim_output_folder};
+use rtr::io::{Inputs, OutputClaim, StagedFolder, claim_output_folder};
 use rtr::{Error, Result};
 
 use super::args::{DataArgs, count};
@@ -65,7 +65,7 @@ pub struct EvalArgs {
 }
 
 /// Checks the inputs and claims `--out` (if given) before any work.
-fn claim_output(args: &EvalArgs) -> Result<Option<FolderClaim>> {
+fn claim_output(args: &EvalArgs) -> Result<Option<OutputClaim>> {
     for path in &args.checkpoints {
         rtr::io::check_input_path(path, "--checkpoint")?;
     }
@@ -200,6 +200,9 @@ fn commonroad_set(
 ) -> Result<Option<(EvalScenes, Vec<commonroad::ClipSummary>)>> {
     if paths.is_empty() {
         return Ok(None);
+    }
+    for path in paths {
+        rtr::io::check_input_path(path, "--commonroad")?;
     }
     let clips = commonroad::load_commonroad(paths, speed_limit)?;
     let (scenes, summaries) = commonroad::commonroad_scenes(&clips, &SceneConfig::default())?;

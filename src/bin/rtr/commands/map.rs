@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use clap::Subcommand;
 
 use rtr::data::a9;
-use rtr::io::check_output_file;
+use rtr::io::claim_output_file;
 use rtr::map::{LaneGraph, to_xodr};
 use rtr::render::{RenderOptions, render_map};
 use rtr::{Error, Result};
@@ -58,7 +58,7 @@ pub fn run(command: MapCommand) -> Result<()> {
                 width_px: width,
                 ..Default::default()
             };
-            let targets = image_targets(&out, &opts, &source.inputs())?;
+            let (targets, _claims) = image_targets(&out, &opts, &source.inputs())?;
             let map = source.load()?;
             for path in targets {
                 render_map(&map, &path, &opts)?;
@@ -67,7 +67,7 @@ pub fn run(command: MapCommand) -> Result<()> {
             Ok(())
         }
         MapCommand::Export { source, out } => {
-            check_output_file(&out, "--out", &source.inputs())?;
+            let _claim = claim_output_file(&out, "--out", &source.inputs())?;
             let map = source.load()?;
             let od = map.opendrive().ok_or_else(|| {
                 Error::InvalidArgument(format!("{} is not an OpenDRIVE map", map.source()))

@@ -51,6 +51,8 @@ fn average(checkpoints: &[PathBuf], out: &std::path::Path) -> Result<()> {
     for path in checkpoints {
         rtr::io::check_input_path(path, "--checkpoint")?;
     }
+    let inputs = rtr::io::Inputs::new().with_all("--checkpoint", checkpoints);
+    let _claim = rtr::io::claim_output_folder(out, "--out", &inputs)?;
     let device = Backend::NdArray.device(false)?;
     let report = rtr::eval::averaged::write_averaged_policy(checkpoints, out, &device)?;
     rtr::outln!(
@@ -64,7 +66,10 @@ fn average(checkpoints: &[PathBuf], out: &std::path::Path) -> Result<()> {
 
 fn info(config: Option<PathBuf>, small: bool, json: bool) -> Result<()> {
     let config = match (&config, small) {
-        (Some(path), _) => ModelConfig::from_toml_file(path)?,
+        (Some(path), _) => {
+            rtr::io::check_input_file(path, "--config")?;
+            ModelConfig::from_toml_file(path)?
+        }
         (None, true) => ModelConfig::small(),
         (None, false) => ModelConfig::default(),
     };

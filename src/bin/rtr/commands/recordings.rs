@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::Subcommand;
 
-use rtr::io::{Inputs, check_output_file};
+use rtr::io::{Inputs, claim_output_file};
 use rtr::sim2real::{Effect, GeneratorConfig, Uncatalogued, generate};
 use rtr::{Error, Result};
 
@@ -37,7 +37,7 @@ pub fn run(command: RecordingsCommand) -> Result<()> {
         tracks,
         out,
     } = command;
-    check_output_file(&out, "--out", &Inputs::new())?;
+    let _claim = claim_output_file(&out, "--out", &Inputs::new())?;
     let mut config = match effect.as_str() {
         "none" => GeneratorConfig::with_effect(None, seed),
         name => match (Effect::from_name(name), Uncatalogued::typical(name)) {

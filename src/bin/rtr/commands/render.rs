@@ -93,7 +93,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         width_px: args.width.unwrap_or(PICTURE_WIDTH_PX),
         ..Default::default()
     };
-    let targets = image_targets(&args.out, &opts, &args.inputs())?;
+    let (targets, _claims) = image_targets(&args.out, &opts, &args.inputs())?;
     let scene = match source(&args)? {
         Source::Scenario(scenario) => return render_scenario(&scenario, &opts, &targets),
         Source::Recorded { scene, .. } => scene,

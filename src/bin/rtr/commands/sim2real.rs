@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 
-use rtr::io::{Inputs, StagedFolder, check_output_file, claim_output_folder};
+use rtr::io::{Inputs, StagedFolder, claim_output_file, claim_output_folder};
 use rtr::sim2real::{Sim2RealOptions, a9::a9_recordings, identify, plots::write_plots, thinning};
 use rtr::{Error, Result};
 
@@ -55,15 +55,16 @@ pub fn run(args: Sim2RealArgs) -> Result<()> {
     let inputs = Inputs::new()
         .with_all("--recordings", &args.recordings)
         .with("--data", args.data.dir());
-    check_output_file(&args.report, "--report", &inputs)?;
+    let _report_claim = claim_output_file(&args.report, "--report", &inputs)?;
     check_distinct_outputs(&args)?;
     let _claim = match &args.plots {
         Some(dir) => Some(claim_output_folder(dir, "--plots", &inputs)?),
         None => None,
     };
-    if let Some(path) = &args.save_dynamics {
-        check_output_file(path, "--save-dynamics", &inputs)?;
-    }
+    let _dynamics_claim = match &args.save_dynamics {
+        Some(path) => Some(claim_output_file(path, "--save-dynamics", &inputs)?),
+        None => None,
+    };
     let (recordings, commands_inferred) = match &args.recordings {
         Some(path) => {
             rtr::io::check_input_file(path, "--recordings")?;
