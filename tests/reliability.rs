@@ -532,3 +532,22 @@ fn a_scenario_folder_is_checked_as_a_set() {
         );
     }
 }
+
+#[test]
+fn a_scenario_folder_a_run_would_ignore_is_refused() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let sets = dir.path().to_str().expect("UTF-8 path");
+    let out = dir.path().join("run");
+    assert_refused(
+        &[
+            "train",
+            "--config",
+            "experiments/main/il.toml",
+            "--scenarios",
+            sets,
+            "--out",
+            out.to_str().expect("UTF-8 path"),
+        ],
+        &["--scenarios", "trains on no long-tail scenarios"],
+    );
+}

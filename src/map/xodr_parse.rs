@@ -36,6 +36,10 @@ const MAX_LANE_OFFSET: f64 = 50.0;
 
 /// How far a geometry may start from where the previous one ended, or the last end from the
 /// road's length (m): rounding in real files, not a gap.
+/// The largest change of heading (rad) between one geometry's end and the next one's start:
+/// a reference line bends, it does not break.
+const MAX_KINK_RAD: f64 = 0.05;
+
 fn chain_slack(road_length: f64) -> f64 {
     0.5f64.max(1e-3 * road_length)
 }
@@ -718,8 +722,30 @@ impl Ctx<'_, '_> {
     }
 
     /// The road's geometries, sorted, follow one another: each starts where the previous one
-    /// ends, and the last ends at the road's length (within [`chain_slack`]).
+    /// ends, in s and in place and heading, and the last ends at the road's length (within
+    /// [`chain_slack`] and [`MAX_KINK_RAD`]).
     fn check_plan_view(&self, plan_view: Node, road: &Road) -> Result<()> {
+        for pair in road.geometries.windows(2) {
+            let (previous, next) = (&pair[0], &pair[1]);
+            let end = previous.eval(previous.length);
+            let gap = (end.x - next.x).hypot(end.y - next.y);
+            let kink = crate::geometry::wrap_angle(next.hdg - end.hdg).abs();
+            if gap > chain_slack(road.length) || kink > MAX_KINK_RAD {
+                let node = elements(plan_view, "geometry")
+                    .find(|n| n.attribute("s").and_then(|v| v.trim().parse().ok()) == Some(next.s))
+                    .unwrap_or(plan_view);
+                return Err(self.err(
+                    node,
+                    format!(
+                        "road {}: the <geometry> at s={} starts at ({}, {}) heading {} rad, but \
+                         the previous one ends at ({:.3}, {:.3}) heading {:.4} rad ({gap:.3} m \
+                         and {kink:.4} rad apart); expected a reference line without jumps or \
+                         kinks",
+                        road.id, next.s, next.x, next.y, next.hdg, end.x, end.y, end.hdg
+                    ),
+                ));
+            }
+        }
         let mut end = 0.0;
         for g in &road.geometries {
             if (g.s - end).abs() > chain_slack(road.length) {

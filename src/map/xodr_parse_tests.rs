@@ -360,3 +360,33 @@ fn lane_sections_out_of_order_are_refused() {
         "the second section's line"
     );
 }
+
+#[test]
+fn a_reference_line_with_a_jump_or_a_kink_is_refused() {
+    let road = |x2: f64, hdg2: f64| {
+        document(&format!(
+            r#"<road id="a" length="200" junction="-1">
+ <planView>
+  <geometry s="0" x="0" y="0" hdg="0" length="100"><line/></geometry>
+  <geometry s="100" x="{x2}" y="0" hdg="{hdg2}" length="100"><line/></geometry>
+ </planView>
+ <lanes><laneSection s="0"><center><lane id="0" type="none"/></center><right>
+  <lane id="-1" type="driving"><width sOffset="0" a="3.5" b="0" c="0" d="0"/></lane>
+ </right></laneSection></lanes>
+</road>
+"#
+        ))
+    };
+    parse_xodr(&road(100.0, 0.0), "t").expect("a continuous line");
+    for (text, what) in [
+        (road(300.0, 0.0), "200.000 m"),
+        (road(100.0, std::f64::consts::FRAC_PI_2), "1.5708 rad"),
+    ] {
+        let (line, message) = parse_err(&text);
+        assert!(
+            message.contains(what) && message.contains("jumps or kinks"),
+            "{message}"
+        );
+        assert_eq!(line, line_of(&text, "<geometry s=\"100\""));
+    }
+}

@@ -601,6 +601,12 @@ impl TrainConfig {
             }))
     }
 
+    /// Whether the run trains on long-tail scenarios: a share of them (`alpha > 0`) and no
+    /// curated scene list in their place.
+    pub fn uses_longtail(&self) -> bool {
+        self.alpha > 0.0 && self.data.curated.is_none()
+    }
+
     /// The files and folders the run reads besides its run file, each named by its field, so
     /// that a command can keep its outputs off them.
     pub fn input_paths(&self) -> Vec<(&'static str, PathBuf)> {
@@ -616,7 +622,9 @@ impl TrainConfig {
             "reference.checkpoint",
             self.reference.as_ref().and_then(|r| r.checkpoint.as_ref()),
         );
-        add("data.longtail_dir", self.data.longtail_dir.as_ref());
+        if self.uses_longtail() {
+            add("data.longtail_dir", self.data.longtail_dir.as_ref());
+        }
         add("data.curated", self.data.curated.as_ref());
         for source in &self.data.commonroad {
             add("data.commonroad.path", Some(&source.path));

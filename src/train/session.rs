@@ -21,7 +21,7 @@ pub fn devices(config: &TrainConfig) -> Result<Vec<burn::prelude::Device>> {
 
 /// Loads the training data `config` needs.
 pub fn training_data(dataset: &A9Dataset, config: &TrainConfig) -> Result<TrainingData> {
-    TrainingData::load(dataset, &config.data, config.alpha > 0.0)
+    TrainingData::load(dataset, &config.data, config.uses_longtail())
 }
 
 /// Trains (or with `resume` continues) the run of `config` in `run_dir`; `stop_after` ends

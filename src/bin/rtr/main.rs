@@ -88,8 +88,27 @@ fn parse_cli() -> Cli {
             .allow_negative_numbers(true)
             .mut_subcommands(allow_negative_numbers)
     }
-    let matches = allow_negative_numbers(Cli::command()).get_matches();
-    Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit())
+    let matches = allow_negative_numbers(Cli::command())
+        .try_get_matches()
+        .unwrap_or_else(|e| exit_with(e));
+    Cli::from_arg_matches(&matches).unwrap_or_else(|e| exit_with(e))
+}
+
+/// Ends the process for a clap outcome that is not a command: help and version go through the
+/// console (a full stdout is an error, a closed one is not), usage errors to stderr as clap
+/// prints them.
+fn exit_with(e: clap::Error) -> ! {
+    use clap::error::ErrorKind;
+    if !matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) {
+        e.exit();
+    }
+    match rtr::out!("{}", e.render()) {
+        Ok(()) => std::process::exit(0),
+        Err(error) => {
+            rtr::errln!("error: {error}");
+            std::process::exit(1);
+        }
+    }
 }
 
 fn main() -> ExitCode {

@@ -48,6 +48,20 @@ pub fn run(args: TrainArgs) -> Result<()> {
         config.dynamics = Some(path.canonicalize().unwrap_or_else(|_| path.clone()));
     }
     if let Some(dir) = &args.scenarios {
+        if !config.uses_longtail() {
+            return Err(Error::InvalidArgument(format!(
+                "--scenarios {}: {} trains on no long-tail scenarios (alpha = {}{}), so the \
+                 folder would be ignored; drop --scenarios, or give the run a share of them",
+                dir.display(),
+                args.config.display(),
+                config.alpha,
+                if config.data.curated.is_some() {
+                    ", and a curated scene list"
+                } else {
+                    ""
+                }
+            )));
+        }
         if !dir.join("train").is_dir() {
             return Err(Error::InvalidArgument(format!(
                 "--scenarios {}: no train/ folder in it; expected the folder `rtr scenarios \
