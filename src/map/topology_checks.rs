@@ -5,7 +5,7 @@
 //! A problem names its element; the parser turns that into the element's line.
 
 use super::lateral::{for_each_span, section_end, section_index};
-use super::opendrive::{ContactPoint, ElementType, OpenDrive, Road};
+use super::opendrive::{Connection, ContactPoint, ElementType, Junction, OpenDrive, Road};
 use super::reference_line::eval_road;
 
 /// How far apart (m) two linked ends may lie: joined roads touch up to the rounding of the
@@ -208,32 +208,37 @@ fn end_name(end: ContactPoint) -> &'static str {
     }
 }
 
+/// Every junction connection with its incoming and connecting roads (those whose roads
+/// exist; [`references_exist`] reports the others).
+fn connections(od: &OpenDrive) -> impl Iterator<Item = (&Junction, &Connection, &Road, &Road)> {
+    od.junctions.iter().flat_map(move |junction| {
+        junction.connections.iter().filter_map(move |c| {
+            let incoming = od.road(&c.incoming_road)?;
+            let connecting = od.road(&c.connecting_road)?;
+            Some((junction, c, incoming, connecting))
+        })
+    })
+}
+
 /// A junction connection's connecting road touches one end of its incoming road.
 fn connections_meet(od: &OpenDrive) -> Option<Problem> {
-    for junction in &od.junctions {
-        for c in &junction.connections {
-            let (Some(incoming), Some(connecting)) =
-                (od.road(&c.incoming_road), od.road(&c.connecting_road))
-            else {
-                continue;
-            };
-            let gap = [ContactPoint::Start, ContactPoint::End]
-                .map(|end| end_gap(incoming, end, connecting, c.contact_point))
-                .into_iter()
-                .fold(f64::INFINITY, f64::min);
-            if gap > LINK_TOLERANCE {
-                return Some(Problem {
-                    place: Place::Connection {
-                        junction: junction.id.clone(),
-                        id: c.id.clone(),
-                    },
-                    message: format!(
-                        "connecting road {} starts {gap:.2} m from either end of its incoming \
-                         road {}; expected it to touch one (within {LINK_TOLERANCE} m)",
-                        connecting.id, incoming.id
-                    ),
-                });
-            }
+    for (junction, c, incoming, connecting) in connections(od) {
+        let gap = [ContactPoint::Start, ContactPoint::End]
+            .map(|end| end_gap(incoming, end, connecting, c.contact_point))
+            .into_iter()
+            .fold(f64::INFINITY, f64::min);
+        if gap > LINK_TOLERANCE {
+            return Some(Problem {
+                place: Place::Connection {
+                    junction: junction.id.clone(),
+                    id: c.id.clone(),
+                },
+                message: format!(
+                    "connecting road {} starts {gap:.2} m from either end of its incoming \
+                     road {}; expected it to touch one (within {LINK_TOLERANCE} m)",
+                    connecting.id, incoming.id
+                ),
+            });
         }
     }
     None
@@ -334,45 +339,37 @@ fn missing_lane(
 
 /// The lanes a junction connection links exist at the ends it joins.
 fn junction_lanes_exist(od: &OpenDrive) -> Option<Problem> {
-    for junction in &od.junctions {
-        for c in &junction.connections {
-            let (Some(incoming), Some(connecting)) =
-                (od.road(&c.incoming_road), od.road(&c.connecting_road))
-            else {
-                continue;
-            };
-            let contact = end_point(connecting, c.contact_point);
-            let near_end = distance(end_point(incoming, ContactPoint::Start), contact)
-                > distance(end_point(incoming, ContactPoint::End), contact);
-            let incoming_section = if near_end {
-                &incoming.lane_sections[incoming.lane_sections.len() - 1]
+    for (junction, c, incoming, connecting) in connections(od) {
+        let near_end = end_gap(incoming, ContactPoint::Start, connecting, c.contact_point)
+            > end_gap(incoming, ContactPoint::End, connecting, c.contact_point);
+        let incoming_section = if near_end {
+            &incoming.lane_sections[incoming.lane_sections.len() - 1]
+        } else {
+            &incoming.lane_sections[0]
+        };
+        let connecting_section = match c.contact_point {
+            ContactPoint::Start => &connecting.lane_sections[0],
+            ContactPoint::End => &connecting.lane_sections[connecting.lane_sections.len() - 1],
+        };
+        for &(from, to) in &c.lane_links {
+            let missing = if incoming_section.lane(from).is_none() {
+                Some(format!("lane {from} of incoming road {}", incoming.id))
+            } else if connecting_section.lane(to).is_none() {
+                Some(format!("lane {to} of connecting road {}", connecting.id))
             } else {
-                &incoming.lane_sections[0]
+                None
             };
-            let connecting_section = match c.contact_point {
-                ContactPoint::Start => &connecting.lane_sections[0],
-                ContactPoint::End => &connecting.lane_sections[connecting.lane_sections.len() - 1],
-            };
-            for &(from, to) in &c.lane_links {
-                let missing = if incoming_section.lane(from).is_none() {
-                    Some(format!("lane {from} of incoming road {}", incoming.id))
-                } else if connecting_section.lane(to).is_none() {
-                    Some(format!("lane {to} of connecting road {}", connecting.id))
-                } else {
-                    None
-                };
-                if let Some(what) = missing {
-                    return Some(Problem {
-                        place: Place::Connection {
-                            junction: junction.id.clone(),
-                            id: c.id.clone(),
-                        },
-                        message: format!(
-                            "a <laneLink> names {what}, which does not exist at the end the \
-                             connection joins"
-                        ),
-                    });
-                }
+            if let Some(what) = missing {
+                return Some(Problem {
+                    place: Place::Connection {
+                        junction: junction.id.clone(),
+                        id: c.id.clone(),
+                    },
+                    message: format!(
+                        "a <laneLink> names {what}, which does not exist at the end the \
+                         connection joins"
+                    ),
+                });
             }
         }
     }
