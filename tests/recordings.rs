@@ -446,6 +446,10 @@ fn a_track_recorded_twice_under_two_ids_is_refused() {
     };
     let message = error(&format!("{HEADER}\n{}{}", track("a", 0.0), track("b", 7.0)));
     assert_contains(&message, &["track_id b", "same track as track_id a"]);
+    // A copy nudged by a micrometre is still a copy.
+    let nudged = track("b", 7.0).replace(",0,0,10,", ",0.000001,0,10,");
+    let message = error(&format!("{HEADER}\n{}{nudged}", track("a", 0.0)));
+    assert_contains(&message, &["track_id b", "same track as track_id a"]);
     // The same times and commands on another path are another track.
     let other = track("c", 0.0).replace(",0,0,10,", ",1,0,10,");
     Recordings::parse("rec.csv", &format!("{HEADER}\n{}{other}", track("a", 0.0)))

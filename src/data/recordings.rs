@@ -151,38 +151,63 @@ impl RecordedTrack {
     }
 }
 
-/// Refuses a track recorded twice under two ids (the same motion and commands, whatever the
-/// times): split into fitting and held-out tracks, one copy would be scored against the
-/// other, and the held-out error would be a training error.
+/// How close (per channel) two tracks' samples must all be for the tracks to count as one
+/// recorded twice: a millimetre, a tenth of a milliradian. No two vehicles drive that close
+/// to the same path for a whole track.
+const SAME_POSITION_M: f64 = 1e-3;
+const SAME_ANGLE_RAD: f64 = 1e-4;
+const SAME_SPEED: f64 = 1e-3;
+
+/// Refuses a track recorded twice under two ids (the same motion and commands up to
+/// [`SAME_POSITION_M`] and friends, whatever the times): split into fitting and held-out
+/// tracks, one copy would be scored against the other, and the held-out error would be a
+/// training error.
 fn refuse_repeated_tracks(source: &str, tracks: &[RecordedTrack]) -> Result<()> {
-    use sha2::{Digest, Sha256};
-    let mut seen: HashMap<[u8; 32], &str> = HashMap::new();
-    for track in tracks {
-        let mut hash = Sha256::new();
-        for channel in [
-            &track.x,
-            &track.y,
-            &track.heading,
-            &track.speed,
-            &track.accel_cmd,
-            &track.steer_cmd,
-        ] {
-            for v in channel {
-                hash.update(v.to_le_bytes());
+    // Candidates share a length and nearly a first x: sorted so, each track is compared with
+    // the few that follow it within the tolerance.
+    let mut order: Vec<usize> = (0..tracks.len())
+        .filter(|&i| !tracks[i].x.is_empty())
+        .collect();
+    order.sort_by(|&a, &b| {
+        (tracks[a].len(), tracks[a].x[0])
+            .partial_cmp(&(tracks[b].len(), tracks[b].x[0]))
+            .unwrap_or(std::cmp::Ordering::Equal)
+    });
+    for (k, &a) in order.iter().enumerate() {
+        for &b in &order[k + 1..] {
+            let (ta, tb) = (&tracks[a], &tracks[b]);
+            if tb.len() != ta.len() || tb.x[0] - ta.x[0] > SAME_POSITION_M {
+                break;
             }
-        }
-        if let Some(first) = seen.insert(hash.finalize().into(), &track.id) {
-            return Err(Error::invalid(
-                source,
-                format!("track_id {}", track.id),
-                format!(
-                    "is the same track as track_id {first} (the same samples under another \
-                     id); a repeated track would be held out against its own copy"
-                ),
-            ));
+            if same_motion(ta, tb) {
+                let (first, second) = if a < b { (ta, tb) } else { (tb, ta) };
+                return Err(Error::invalid(
+                    source,
+                    format!("track_id {}", second.id),
+                    format!(
+                        "is the same track as track_id {} (the same samples within a \
+                         millimetre, under another id); a repeated track would be held out \
+                         against its own copy",
+                        first.id
+                    ),
+                ));
+            }
         }
     }
     Ok(())
+}
+
+/// Whether every sample of `a` and `b` agrees within the tolerances above.
+fn same_motion(a: &RecordedTrack, b: &RecordedTrack) -> bool {
+    let close = |x: &[f64], y: &[f64], tolerance: f64| {
+        x.iter().zip(y).all(|(p, q)| (p - q).abs() <= tolerance)
+    };
+    close(&a.x, &b.x, SAME_POSITION_M)
+        && close(&a.y, &b.y, SAME_POSITION_M)
+        && close(&a.heading, &b.heading, SAME_ANGLE_RAD)
+        && close(&a.speed, &b.speed, SAME_SPEED)
+        && close(&a.accel_cmd, &b.accel_cmd, SAME_SPEED)
+        && close(&a.steer_cmd, &b.steer_cmd, SAME_ANGLE_RAD)
 }
 
 /// All tracks of one recordings file.
