@@ -243,6 +243,19 @@ fn clips_become_scenes_by_the_a9_windows_and_say_why_not() {
     );
     assert_eq!(set_based.skipped[0].1, 33);
     assert!(count("USA_US101-15_1_T-1").planning_vehicle_removed);
+    // `_1` and `_2` of benchmark 1 are two planning problems over the same two vehicles.
+    let repeat = count("USA_US101-1_2_T-1");
+    assert!(
+        repeat
+            .repeats
+            .as_deref()
+            .unwrap()
+            .ends_with("USA_US101-1_1_T-1.xml.gz"),
+        "{:?}",
+        repeat.repeats
+    );
+    assert!(count("USA_US101-1_1_T-1").repeats.is_none());
+    assert_eq!(summaries.iter().filter(|s| s.repeats.is_some()).count(), 1);
     for scene in &scenes {
         assert_eq!(scene.dt, 0.5);
         assert!(scene.controlled_count() >= 1);
@@ -536,6 +549,45 @@ head_hidden = [16]
 }
 
 #[test]
+fn a_commonroad_source_that_repeats_another_sources_clip_is_refused_by_name() {
+    use rtr::train::{CommonRoadSource, DataConfig, TrainingData};
+    let dir = tempfile::tempdir().unwrap();
+    let mut text = String::new();
+    flate2::read::GzDecoder::new(
+        std::fs::File::open(us101_dir().join("USA_US101-24_2_T-1.xml.gz")).unwrap(),
+    )
+    .read_to_string(&mut text)
+    .unwrap();
+    let copy = write(
+        &dir,
+        "copy.xml",
+        &text.replace("USA_US101-24_2_T-1", "USA_US101-99_1_T-1"),
+    );
+    let source = |path: PathBuf| CommonRoadSource {
+        path,
+        weight: 0.25,
+        speed_limit: None,
+    };
+    let config = DataConfig {
+        nominal_limit: Some(10),
+        a9_weight: 0.5,
+        commonroad: vec![
+            source(us101_dir().join("USA_US101-24_2_T-1.xml.gz")),
+            source(copy),
+        ],
+        ..DataConfig::default()
+    };
+    let err = TrainingData::load(common::a9(), &config, false)
+        .err()
+        .expect("a source repeating another is refused")
+        .to_string();
+    assert!(
+        err.contains("copy.xml") && err.contains("USA_US101-24_2_T-1.xml.gz"),
+        "{err}"
+    );
+}
+
+#[test]
 fn run_files_name_commonroad_sources_relative_to_themselves_and_check_weights() {
     let dir = tempfile::tempdir().unwrap();
     let run = |body: &str| {
@@ -643,6 +695,63 @@ fn a_clip_that_starts_late_starts_at_time_zero_and_two_clips_with_one_id_are_ref
         err.contains("again.xml") && err.contains("ZAM_Test-1_1_T-1"),
         "{err}"
     );
+}
+
+/// `template` with its steps shifted by `shift`, its benchmark id and obstacle id replaced and
+/// its car moved sideways by `dy` metres.
+fn variant(steps: usize, shift: usize, id: &str, dy: f64) -> String {
+    let mut text = template(steps);
+    for k in (0..steps).rev() {
+        text = text.replace(
+            &format!("<time><exact>{k}</exact>"),
+            &format!("<time><exact>{}</exact>", k + shift),
+        );
+    }
+    text.replace("ZAM_Test-1_1_T-1", id)
+        .replace(r#"dynamicObstacle id="7""#, r#"dynamicObstacle id="70""#)
+        .replace("<y>-1.75</y>", &format!("<y>{}</y>", -1.75 + dy))
+}
+
+#[test]
+fn a_clip_repeated_under_another_id_or_cut_shorter_is_read_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let original = write(&dir, "a.xml", &template(101));
+    // The same traffic under another benchmark id, obstacle id and start step.
+    let renamed = write(&dir, "b.xml", &variant(101, 300, "ZAM_Copy-1_1_T-1", 0.0));
+    // The same car's first 8.1 s only: a run of the original's states.
+    let cut = write(&dir, "c.xml", &variant(81, 0, "ZAM_Cut-1_1_T-1", 0.0));
+    // Another car, a lane over: different traffic, kept.
+    write(&dir, "d.xml", &variant(101, 0, "ZAM_Other-1_1_T-1", 3.5));
+    let config = SceneConfig::default();
+    let single = commonroad_scenes(&load_commonroad(&[original], None).unwrap(), &config)
+        .unwrap()
+        .0
+        .len();
+    assert_eq!(single, 3);
+    let (scenes, summaries) = commonroad_scenes(
+        &load_commonroad(&[dir.path().to_path_buf()], None).unwrap(),
+        &config,
+    )
+    .unwrap();
+    let repeats: Vec<Option<&str>> = summaries.iter().map(|s| s.repeats.as_deref()).collect();
+    let a = dir.path().join("a.xml").display().to_string();
+    assert_eq!(repeats, [None, Some(a.as_str()), Some(a.as_str()), None]);
+    assert_eq!(scenes.len(), 2 * single);
+    assert!(
+        scenes
+            .iter()
+            .all(|s| !s.id.starts_with("ZAM_Copy") && !s.id.starts_with("ZAM_Cut"))
+    );
+    let why = summaries[1].no_scene_because.as_deref().unwrap();
+    assert!(why.contains("a.xml") && why.contains("read once"), "{why}");
+    // The clip cut shorter repeats the longer one whatever the order they are read in.
+    let clips = load_commonroad(&[cut.clone(), renamed], None).unwrap();
+    let (_, summaries) = commonroad_scenes(&clips, &config).unwrap();
+    assert_eq!(
+        summaries[0].repeats.as_deref(),
+        Some(dir.path().join("b.xml").display().to_string().as_str())
+    );
+    assert_eq!(summaries[1].repeats, None);
 }
 
 /// Vehicle lengths in feet are refused as a whole even where each one is a possible length

@@ -11,7 +11,9 @@ use std::path::Path;
 use rand::Rng;
 
 use super::config::DataConfig;
-use crate::data::commonroad::{commonroad_scenes, load_commonroad};
+use crate::data::commonroad::{
+    CommonRoadClip, check_clip_names, commonroad_scenes, load_commonroad, repeated_clips,
+};
 use crate::data::{A9Dataset, SceneConfig, TrafficStatistics, bend_scenes, read_scene_list};
 use crate::error::{Error, Result};
 use crate::scenario::{
@@ -84,8 +86,7 @@ impl TrainingData {
             nominal_sources.push((start..nominal.len(), bend.weight));
         }
         let bent = a9_len..nominal.len();
-        for source in &config.commonroad {
-            let clips = load_commonroad(std::slice::from_ref(&source.path), source.speed_limit)?;
+        for (source, clips) in config.commonroad.iter().zip(commonroad_per_source(config)?) {
             let (scenes, _) = commonroad_scenes(&clips, &SceneConfig::default())?;
             if scenes.is_empty() {
                 return Err(Error::invalid(
@@ -260,4 +261,41 @@ fn curated_indices(nominal: &[Scene], path: &Path) -> Result<Vec<usize>> {
             })
         })
         .collect()
+}
+
+/// The clips of each `data.commonroad` source, read as one set: scene ids unique over all
+/// sources, and a clip whose driving another clip (of this source or another) already holds
+/// left out, so no vehicle is trained on twice. A source left with no clip is an error.
+fn commonroad_per_source(config: &DataConfig) -> Result<Vec<Vec<CommonRoadClip>>> {
+    let per_source = config
+        .commonroad
+        .iter()
+        .map(|source| load_commonroad(std::slice::from_ref(&source.path), source.speed_limit))
+        .collect::<Result<Vec<_>>>()?;
+    let all: Vec<CommonRoadClip> = per_source.concat();
+    check_clip_names(&all)?;
+    let mut repeats = repeated_clips(&all).into_iter();
+    let mut kept = Vec::new();
+    for (source, clips) in config.commonroad.iter().zip(per_source) {
+        let (unique, repeated): (Vec<_>, Vec<_>) = clips
+            .into_iter()
+            .map(|clip| (clip, repeats.next().flatten()))
+            .partition(|(_, repeat_of)| repeat_of.is_none());
+        if unique.is_empty()
+            && let Some((clip, Some(a))) = repeated.first()
+        {
+            return Err(Error::invalid(
+                source.path.display().to_string(),
+                "data.commonroad",
+                format!(
+                    "every vehicle of it is recorded in {} too ({} repeats that clip's \
+                     driving): the source adds nothing",
+                    all[*a].path.display(),
+                    clip.path.display()
+                ),
+            ));
+        }
+        kept.push(unique.into_iter().map(|(clip, _)| clip).collect());
+    }
+    Ok(kept)
 }

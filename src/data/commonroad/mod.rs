@@ -4,12 +4,14 @@
 //! as the A9 recording ([`build_all_scenes`]). The CommonRoad tools convert highD, inD, exiD,
 //! rounD, INTERACTION and NGSIM into this format.
 
+mod clip_set;
 mod parse;
 
 use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+pub use clip_set::{check_clip_names, repeated_clips};
 pub use parse::{CommonRoadDocument, FORMAT_VERSIONS, Obstacle, ObstacleState, parse_commonroad};
 
 use super::a9::LANE_NODE_LENGTH;
@@ -205,6 +207,10 @@ pub struct ClipSummary {
     /// Why the clip gave no scene.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub no_scene_because: Option<String>,
+    /// The clip that already holds every vehicle of this one ([`repeated_clips`]): this one
+    /// gives no scene.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub repeats: Option<String>,
     /// Dynamic obstacles left out, by type or reason.
     pub skipped: Vec<(String, usize)>,
     pub planning_vehicle_removed: bool,
@@ -224,22 +230,20 @@ pub fn commonroad_scenes(
 ) -> Result<(Vec<Scene>, Vec<ClipSummary>)> {
     let mut scenes = Vec::new();
     let mut summaries: Vec<ClipSummary> = Vec::new();
-    // Scene ids start with the clip's name: (name, file) of the clips so far.
-    let mut names: Vec<(String, &Path)> = Vec::new();
-    for clip in clips {
-        let name = clip.benchmark_id_or_file();
-        if let Some((_, other)) = names.iter().find(|(n, _)| *n == name) {
-            return Err(Error::invalid(
-                clip.path.display().to_string(),
-                "benchmarkID",
-                format!(
-                    "`{name}` also names {}: scene ids would clash (pass each clip once)",
-                    other.display()
-                ),
-            ));
-        }
-        names.push((name, &clip.path));
-        let clip_scenes = clip.scenes(config)?;
+    check_clip_names(clips)?;
+    let repeats = repeated_clips(clips);
+    for (clip, repeat_of) in clips.iter().zip(repeats) {
+        let repeats = repeat_of.map(|a| clips[a].path.display().to_string());
+        let clip_scenes = match repeats {
+            Some(_) => Vec::new(),
+            None => clip.scenes(config)?,
+        };
+        let no_scene_because = match &repeats {
+            Some(file) => Some(format!(
+                "every vehicle of it is recorded in {file} too: read once, from there"
+            )),
+            None => clip_scenes.is_empty().then(|| clip.no_scene_reason(config)),
+        };
         summaries.push(ClipSummary {
             file: clip.path.display().to_string(),
             benchmark_id: clip.benchmark_id.clone(),
@@ -249,7 +253,8 @@ pub fn commonroad_scenes(
             vehicles: clip.recording.tracks.len(),
             duration_s: clip.recording.duration(),
             scenes: clip_scenes.len(),
-            no_scene_because: clip_scenes.is_empty().then(|| clip.no_scene_reason(config)),
+            no_scene_because,
+            repeats,
             skipped: clip.skipped.clone(),
             planning_vehicle_removed: clip.planning_vehicle_removed(),
             lanes_without_speed_limit: clip.lanes_without_speed_limit,
@@ -291,7 +296,11 @@ pub fn describe_clips(summaries: &[ClipSummary]) -> String {
         text.push('\n');
     }
     let scenes: usize = summaries.iter().map(|s| s.scenes).sum();
-    let vehicles: usize = summaries.iter().map(|s| s.vehicles).sum();
+    let vehicles: usize = summaries
+        .iter()
+        .filter(|s| s.repeats.is_none())
+        .map(|s| s.vehicles)
+        .sum();
     text.push_str(&format!(
         "commonroad: {} files, {vehicles} vehicles, {scenes} scenes\n",
         summaries.len()
