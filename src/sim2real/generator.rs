@@ -53,6 +53,39 @@ pub struct GeneratorConfig {
     /// Concealed physics outside the catalogue, if any (for the open-ended stage).
     pub uncatalogued: Option<Uncatalogued>,
     pub noise: SensorNoise,
+    /// How the logged commands relate to the commands the plant received.
+    pub command_timing: CommandTiming,
+}
+
+/// How a log's commands relate to what the vehicle received between two samples.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum CommandTiming {
+    /// Each logged command was held over the period that follows it (a controller running at
+    /// the log's rate).
+    #[default]
+    Held,
+    /// A controller [`CONTROLLER_STEPS_PER_SAMPLE`] times faster than the log: its command
+    /// changes between samples, and the log keeps its value at each sample time.
+    Sampled,
+}
+
+impl CommandTiming {
+    pub const NAMES: [&'static str; 2] = ["held", "sampled"];
+
+    pub fn from_name(name: &str) -> Option<Self> {
+        match name {
+            "held" => Some(Self::Held),
+            "sampled" => Some(Self::Sampled),
+            _ => None,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Held => "held",
+            Self::Sampled => "sampled",
+        }
+    }
 }
 
 impl GeneratorConfig {
@@ -68,6 +101,7 @@ impl GeneratorConfig {
             effect: effect.map(|e| (e, typical(e))),
             uncatalogued: None,
             noise: SensorNoise::default(),
+            command_timing: CommandTiming::Held,
         }
     }
 
@@ -157,88 +191,154 @@ pub fn typical(effect: Effect) -> Vec<f64> {
 /// well below the noise).
 const PLANT_SUBSTEPS: usize = 10;
 
+/// Controller steps per logged sample under [`CommandTiming::Sampled`]: a 100 Hz controller
+/// under a 10 Hz log.
+pub const CONTROLLER_STEPS_PER_SAMPLE: usize = 10;
+
+/// The true plant for one controller step of `step_s`.
+fn plant(config: &GeneratorConfig, step_s: f64, substeps: usize, device: &Device) -> Dynamics {
+    let mut plant = Dynamics::bicycle(step_s);
+    plant.limits = None;
+    plant.integrator = Integrator::Midpoint;
+    plant.substeps = substeps;
+    if let Some((effect, values)) = &config.effect {
+        let params: Vec<Tensor<2>> = values.iter().map(|&v| parameter(v, device)).collect();
+        plant = plant.with_term(effect.term(&params, step_s));
+    }
+    if let Some(physics) = config.uncatalogued {
+        plant = plant.with_term(physics.term());
+    }
+    plant
+}
+
+fn column(values: Vec<f64>, device: &Device) -> Tensor<2> {
+    let n = values.len();
+    let v: Vec<f32> = values.iter().map(|&x| x as f32).collect();
+    Tensor::<2>::from_data(burn::tensor::TensorData::new(v, [n, 1]), device)
+}
+
+fn host(t: &Tensor<2>) -> Vec<f64> {
+    t.to_data()
+        .convert::<f64>()
+        .try_into_vec::<f64>()
+        .expect("f64 data")
+}
+
 /// Generates the recordings on `device` (plain, no autodiff needed).
 pub fn generate(config: &GeneratorConfig, device: &Device) -> Recordings {
     let mut rng = ChaCha8Rng::seed_from_u64(config.seed);
     let n = config.tracks;
     let dt = config.period_s;
     let samples = (config.duration_s / dt).round() as usize + 1;
-    let mut plant = Dynamics::bicycle(dt);
-    plant.limits = None;
-    plant.integrator = Integrator::Midpoint;
-    plant.substeps = PLANT_SUBSTEPS;
-    if let Some((effect, values)) = &config.effect {
-        let params: Vec<Tensor<2>> = values.iter().map(|&v| parameter(v, device)).collect();
-        plant = plant.with_term(effect.term(&params, dt));
-    }
-    if let Some(physics) = config.uncatalogued {
-        plant = plant.with_term(physics.term());
-    }
+    // Held: one controller step per sample, integrated finely. Sampled: the controller acts
+    // at every plant step.
+    let controller_steps = match config.command_timing {
+        CommandTiming::Held => 1,
+        CommandTiming::Sampled => CONTROLLER_STEPS_PER_SAMPLE,
+    };
+    let step_s = dt / controller_steps as f64;
+    let plant = plant(config, step_s, PLANT_SUBSTEPS / controller_steps, device);
     let mut drivers: Vec<Driver> = (0..n).map(|_| Driver::new(&mut rng)).collect();
-    let column = |values: Vec<f64>| {
-        let v: Vec<f32> = values.iter().map(|&x| x as f32).collect();
-        Tensor::<2>::from_data(burn::tensor::TensorData::new(v, [n, 1]), device)
-    };
-    let host = |t: &Tensor<2>| -> Vec<f64> {
-        t.to_data()
-            .convert::<f64>()
-            .try_into_vec::<f64>()
-            .expect("f64 data")
-    };
     let mut state = VehicleState {
-        x: column((0..n).map(|_| rng.random_range(-500.0..500.0)).collect()),
-        y: column((0..n).map(|_| rng.random_range(-500.0..500.0)).collect()),
-        heading: column((0..n).map(|_| rng.random_range(-3.0..3.0)).collect()),
-        speed: column(drivers.iter().map(Driver::initial_speed).collect()),
+        x: column(
+            (0..n).map(|_| rng.random_range(-500.0..500.0)).collect(),
+            device,
+        ),
+        y: column(
+            (0..n).map(|_| rng.random_range(-500.0..500.0)).collect(),
+            device,
+        ),
+        heading: column(
+            (0..n).map(|_| rng.random_range(-3.0..3.0)).collect(),
+            device,
+        ),
+        speed: column(drivers.iter().map(Driver::initial_speed).collect(), device),
         aux: Vec::new(),
     };
     let zero = Controls {
-        accel: column(vec![0.0; n]),
-        steer: column(vec![0.0; n]),
+        accel: column(vec![0.0; n], device),
+        steer: column(vec![0.0; n], device),
     };
     state = plant.init_aux(state, &zero);
-    let wheelbase = column(vec![config.true_wheelbase_m; n]);
-    let mut tracks: Vec<RecordedTrack> = (0..n)
-        .map(|i| RecordedTrack::empty(format!("{}", i + 1), dt, Some(config.declared_wheelbase_m)))
-        .collect();
-    let noise = |sigma: f64| Normal::new(0.0, sigma.max(1e-12)).expect("finite sigma");
-    let (pos_noise, heading_noise, speed_noise) = (
-        noise(config.noise.position_m),
-        noise(config.noise.heading_rad),
-        noise(config.noise.speed_m_s),
-    );
+    let wheelbase = column(vec![config.true_wheelbase_m; n], device);
+    let mut log = Log::new(config);
     for k in 0..samples {
-        let (x, y, h, v) = (
-            host(&state.x),
-            host(&state.y),
-            host(&state.heading),
-            host(&state.speed),
-        );
-        let mut commands = (Vec::with_capacity(n), Vec::with_capacity(n));
-        for (i, driver) in drivers.iter_mut().enumerate() {
-            let (accel, steer) = driver.command(k as f64 * dt, v[i], &mut rng);
-            let track = &mut tracks[i];
-            track.t.push(k as f64 * dt);
-            track.x.push(x[i] + pos_noise.sample(&mut rng));
-            track.y.push(y[i] + pos_noise.sample(&mut rng));
-            track
-                .heading
-                .push(wrap_angle(h[i] + heading_noise.sample(&mut rng)));
-            track.speed.push(v[i] + speed_noise.sample(&mut rng));
-            track.accel_cmd.push(accel);
-            track.steer_cmd.push(steer);
-            commands.0.push(accel);
-            commands.1.push(steer);
+        for j in 0..controller_steps {
+            let t = k as f64 * dt + j as f64 * step_s;
+            // The log samples the true state at its own rate only.
+            let observed = (j == 0).then(|| [&state.x, &state.y, &state.heading].map(host));
+            let speeds = host(&state.speed);
+            let mut commands = (Vec::with_capacity(n), Vec::with_capacity(n));
+            for (i, driver) in drivers.iter_mut().enumerate() {
+                let (accel, steer) = driver.command(t, speeds[i], &mut rng);
+                if let Some([x, y, h]) = &observed {
+                    let truth = [x[i], y[i], h[i], speeds[i]];
+                    log.record(i, t, truth, (accel, steer), &mut rng);
+                }
+                commands.0.push(accel);
+                commands.1.push(steer);
+            }
+            let command = Controls {
+                accel: column(commands.0, device),
+                steer: column(commands.1, device),
+            };
+            state = plant.step(&state, &command, &wheelbase);
         }
-        let command = Controls {
-            accel: column(commands.0),
-            steer: column(commands.1),
-        };
-        state = plant.step(&state, &command, &wheelbase);
     }
     Recordings {
         source: format!("generator (seed {})", config.seed),
-        tracks,
+        tracks: log.tracks,
+    }
+}
+
+/// The recordings being written: true states under sensor noise, and the logged commands.
+struct Log {
+    tracks: Vec<RecordedTrack>,
+    noise: [Normal<f64>; 3],
+}
+
+impl Log {
+    fn new(config: &GeneratorConfig) -> Self {
+        let noise = |sigma: f64| Normal::new(0.0, sigma.max(1e-12)).expect("finite sigma");
+        Self {
+            tracks: (0..config.tracks)
+                .map(|i| {
+                    RecordedTrack::empty(
+                        format!("{}", i + 1),
+                        config.period_s,
+                        Some(config.declared_wheelbase_m),
+                    )
+                })
+                .collect(),
+            noise: [
+                noise(config.noise.position_m),
+                noise(config.noise.heading_rad),
+                noise(config.noise.speed_m_s),
+            ],
+        }
+    }
+
+    /// Track `i`'s sample at `t`: the true x, y, heading and speed under noise, and the
+    /// commands.
+    fn record(
+        &mut self,
+        i: usize,
+        t: f64,
+        truth: [f64; 4],
+        (accel, steer): (f64, f64),
+        rng: &mut ChaCha8Rng,
+    ) {
+        let [position, heading, speed] = self.noise;
+        let track = &mut self.tracks[i];
+        track.t.push(t);
+        track.x.push(truth[0] + position.sample(rng));
+        track.y.push(truth[1] + position.sample(rng));
+        track
+            .heading
+            .push(wrap_angle(truth[2] + heading.sample(rng)));
+        track.speed.push(truth[3] + speed.sample(rng));
+        track.accel_cmd.push(accel);
+        track.steer_cmd.push(steer);
     }
 }
 

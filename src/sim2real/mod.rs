@@ -22,6 +22,6 @@ pub mod unexplained;
 pub mod windows;
 
 pub use crate::sim::catalogue::{DynamicsFile, Effect, FittedTerm};
-pub use generator::{GeneratorConfig, SensorNoise, Uncatalogued, generate};
+pub use generator::{CommandTiming, GeneratorConfig, SensorNoise, Uncatalogued, generate};
 pub use identify::{Outcome, Sim2RealOptions, identify, thinning};
 pub use report::Report;
