@@ -75,6 +75,15 @@ fn sinc(x: f64) -> f64 {
     }
 }
 
+/// Length (m) of the curve (u(p), v(p)) of a `<paramPoly3>` over its whole range of p.
+pub fn param_poly3_length(u: &[f64; 4], v: &[f64; 4], p_range: PRange, length: f64) -> f64 {
+    let p_max = match p_range {
+        PRange::ArcLength => length,
+        PRange::Normalized => 1.0,
+    };
+    integrate(0.0, p_max, 64, |p| cubic(u, p).1.hypot(cubic(v, p).1))
+}
+
 fn cubic(c: &[f64; 4], p: f64) -> (f64, f64, f64) {
     let v = c[0] + p * (c[1] + p * (c[2] + p * c[3]));
     let d1 = c[1] + p * (2.0 * c[2] + p * 3.0 * c[3]);

@@ -44,12 +44,37 @@ pub(super) struct Problem {
 
 /// The first topology problem of `od`, if any.
 pub(super) fn check(od: &OpenDrive) -> Option<Problem> {
-    references_exist(od)
+    ids_are_unique(od)
+        .or_else(|| references_exist(od))
         .or_else(|| links_meet(od))
         .or_else(|| connections_meet(od))
         .or_else(|| linked_lanes_exist(od))
+        .or_else(|| linked_lane_edges_meet(od))
         .or_else(|| lanes_fit_their_bends(od))
         .or_else(|| reference_lines_do_not_cross(od))
+}
+
+/// No two roads, and no two junctions, share an id: a link to it would name either.
+fn ids_are_unique(od: &OpenDrive) -> Option<Problem> {
+    let repeated = |ids: Vec<&String>| {
+        ids.iter()
+            .enumerate()
+            .find(|(k, id)| ids[..*k].contains(id))
+            .map(|(_, id)| (*id).clone())
+    };
+    if let Some(id) = repeated(od.roads.iter().map(|r| &r.id).collect()) {
+        let count = od.roads.iter().filter(|r| r.id == id).count();
+        return Some(Problem {
+            place: Place::Road(id.clone()),
+            message: format!(
+                "road id \"{id}\" is given to {count} roads; expected each road's id once"
+            ),
+        });
+    }
+    repeated(od.junctions.iter().map(|j| &j.id).collect()).map(|id| Problem {
+        place: Place::Road(String::new()),
+        message: format!("junction id \"{id}\" is given to more than one junction; expected each junction's id once"),
+    })
 }
 
 /// Every road and junction a link or connection names is in the document.
@@ -374,6 +399,121 @@ fn junction_lanes_exist(od: &OpenDrive) -> Option<Problem> {
         }
     }
     None
+}
+
+/// How far apart (m) the boundaries of two linked lanes may lie where they join: more, and a
+/// car crossing the link would jump sideways or leave its lane.
+pub(super) const EDGE_TOLERANCE: f64 = 0.5;
+
+/// Lanes linked across roads (a road's lane links, a junction's lane links) join edge to
+/// edge: both boundaries of one lane meet those of the other where the roads touch.
+fn linked_lane_edges_meet(od: &OpenDrive) -> Option<Problem> {
+    for road in &od.roads {
+        for (link, end, last) in [
+            (&road.predecessor, ContactPoint::Start, false),
+            (&road.successor, ContactPoint::End, true),
+        ] {
+            let Some(link) = link
+                .as_ref()
+                .filter(|l| l.element_type == ElementType::Road)
+            else {
+                continue;
+            };
+            let (Some(other), Some(other_end)) = (od.road(&link.element_id), link.contact_point)
+            else {
+                continue;
+            };
+            let section = if last {
+                road.lane_sections.len() - 1
+            } else {
+                0
+            };
+            for lane in road.lane_sections[section].lanes().filter(|l| l.id != 0) {
+                let ids = if last {
+                    &lane.successors
+                } else {
+                    &lane.predecessors
+                };
+                for &to in ids {
+                    if let Some(message) = edge_gap(road, end, lane.id, other, other_end, to) {
+                        return Some(Problem {
+                            place: Place::Lane {
+                                road: road.id.clone(),
+                                section,
+                                lane: lane.id,
+                            },
+                            message,
+                        });
+                    }
+                }
+            }
+        }
+    }
+    for (junction, c, incoming, connecting) in connections(od) {
+        let near_end = if end_gap(incoming, ContactPoint::Start, connecting, c.contact_point)
+            > end_gap(incoming, ContactPoint::End, connecting, c.contact_point)
+        {
+            ContactPoint::End
+        } else {
+            ContactPoint::Start
+        };
+        for &(from, to) in &c.lane_links {
+            let gap = edge_gap(incoming, near_end, from, connecting, c.contact_point, to);
+            if let Some(message) = gap {
+                return Some(Problem {
+                    place: Place::Connection {
+                        junction: junction.id.clone(),
+                        id: c.id.clone(),
+                    },
+                    message,
+                });
+            }
+        }
+    }
+    None
+}
+
+/// Why lane `a_lane` at end `a_end` of road `a` and lane `b_lane` at end `b_end` of road `b`
+/// do not join edge to edge, if they do not.
+fn edge_gap(
+    a: &Road,
+    a_end: ContactPoint,
+    a_lane: i32,
+    b: &Road,
+    b_end: ContactPoint,
+    b_lane: i32,
+) -> Option<String> {
+    let ([a_inner, a_outer], [b_inner, b_outer]) =
+        (lane_edges(a, a_end, a_lane)?, lane_edges(b, b_end, b_lane)?);
+    let gap = distance(a_inner, b_inner).max(distance(a_outer, b_outer));
+    (gap > EDGE_TOLERANCE).then(|| {
+        format!(
+            "lane {a_lane} of road {} and lane {b_lane} of road {}, linked, have edges {gap:.2} \
+             m apart where they join (widths {:.2} and {:.2} m); expected their edges to meet \
+             (within {EDGE_TOLERANCE} m)",
+            a.id,
+            b.id,
+            distance(a_inner, a_outer),
+            distance(b_inner, b_outer)
+        )
+    })
+}
+
+/// World positions of the inner and outer boundary of lane `id` at end `end` of `road`.
+fn lane_edges(road: &Road, end: ContactPoint, id: i32) -> Option<[[f64; 2]; 2]> {
+    let (section, s) = match end {
+        ContactPoint::Start => (0, 0.0),
+        ContactPoint::End => (road.lane_sections.len() - 1, road.length),
+    };
+    let mut span = None;
+    for_each_span(road, &road.lane_sections[section], s, |lane, lane_span| {
+        if lane.id == id {
+            span = Some(lane_span);
+        }
+    });
+    let span = span?;
+    let point = eval_road(road, s);
+    Some([point.offset(span.inner), point.offset(span.outer)])
 }
 
 /// The samples `s` of section `k` of `road` the geometric checks use (both ends included).

@@ -13,6 +13,7 @@
 //! Anything else (a 1e9 m lane, a negative width, a 1 mm arc) is nonsense that would silently
 //! distort or exhaust the map sampler.
 
+use super::reference_line::param_poly3_length;
 use super::topology_checks::Place;
 use roxmltree::{Document, Node};
 
@@ -29,6 +30,10 @@ const MIN_DRIVING_WIDTH: f64 = 0.5;
 const MAX_ROAD_LENGTH: f64 = 100_000.0;
 /// Tightest plausible curvature (1/m): a 2 m radius.
 const MAX_CURVATURE: f64 = 0.5;
+
+/// How far (as a fraction of the length) a `<paramPoly3>`'s own curve length may differ from
+/// its `<geometry>` length: the two describe one curve, and the map is built from both.
+const CURVE_LENGTH_TOLERANCE: f64 = 0.02;
 /// Farthest plausible position from the map origin (m).
 const MAX_COORDINATE: f64 = 1e7;
 /// Farthest plausible lane offset from the reference line (m).
@@ -671,6 +676,20 @@ impl Ctx<'_, '_> {
                 node,
                 "<geometry> attribute `length` is 0; expected metres > 0",
             ));
+        }
+        if let GeometryKind::ParamPoly3 { u, v, p_range } = &geometry.kind {
+            let curve = param_poly3_length(u, v, *p_range, geometry.length);
+            if (curve - geometry.length).abs() > CURVE_LENGTH_TOLERANCE * geometry.length + 0.1 {
+                return Err(self.err(
+                    shape,
+                    format!(
+                        "<paramPoly3> draws a curve {curve:.2} m long, but its <geometry> says \
+                         `length` {} m; expected the two to agree (within {} %)",
+                        geometry.length,
+                        CURVE_LENGTH_TOLERANCE * 100.0
+                    ),
+                ));
+            }
         }
         if let Some(k) = polynomial_curvature(&geometry.kind, geometry.length)
             && k > MAX_CURVATURE

@@ -145,7 +145,7 @@ fn reads_links_junctions_and_other_geometries() {
  <planView>
   <geometry s="0" x="0" y="0" hdg="0" length="10"><spiral curvStart="0" curvEnd="0.01"/></geometry>
   <geometry s="10" x="10" y="0" hdg="0" length="10"><poly3 a="0" b="0" c="0.001" d="0"/></geometry>
-  <geometry s="20" x="20" y="0" hdg="0" length="10"><paramPoly3 aU="0" bU="10" cU="0" dU="0" aV="0" bV="0" cV="1" dV="0" pRange="arcLength"/></geometry>
+  <geometry s="20" x="20" y="0" hdg="0" length="10"><paramPoly3 aU="0" bU="1" cU="0" dU="0" aV="0" bV="0" cV="0.01" dV="0" pRange="arcLength"/></geometry>
  </planView>
  <elevationProfile><elevation s="0" a="0" b="0" c="0" d="0"/></elevationProfile>
  <lanes><laneSection s="0"><center><lane id="0" type="none"/></center>
@@ -389,4 +389,53 @@ fn a_reference_line_with_a_jump_or_a_kink_is_refused() {
         );
         assert_eq!(line, line_of(&text, "<geometry s=\"100\""));
     }
+}
+
+#[test]
+fn linked_lanes_must_join_edge_to_edge() {
+    let next = r#"<successor elementType="road" elementId="b" contactPoint="start"/>"#;
+    let back = r#"<predecessor elementType="road" elementId="a" contactPoint="end"/>"#;
+    let lane_next = r#"<successor id="-1"/>"#;
+    let joined = document(
+        &(straight("a", 0.0, 100.0, next, lane_next) + &straight("b", 100.0, 50.0, back, "")),
+    );
+    parse_xodr(&joined, "t").expect("lanes of one width");
+    // Road b's lanes 2 m wide: lane -1's outer edge jumps 1.5 m at the link.
+    let narrow = straight("b", 100.0, 50.0, back, "").replace("a=\"3.5\"", "a=\"2.0\"");
+    let text = document(&(straight("a", 0.0, 100.0, next, lane_next) + &narrow));
+    let (line, message) = parse_err(&text);
+    assert!(
+        message.contains("edges 1.50 m apart") && message.contains("lane -1 of road a"),
+        "{message}"
+    );
+    assert_eq!(line, line_of(&text, "<lane id=\"-1\""));
+}
+
+#[test]
+fn a_road_id_given_twice_is_named() {
+    let text = document(&(straight("a", 0.0, 100.0, "", "") + &straight("a", 0.0, 50.0, "", "")));
+    let (line, message) = parse_err(&text);
+    assert!(
+        message.contains("road id \"a\" is given to 2 roads"),
+        "{message}"
+    );
+    assert_eq!(line, line_of(&text, "<road id=\"a\""));
+}
+
+#[test]
+fn a_param_poly3_whose_curve_disagrees_with_its_length_is_refused() {
+    let road = |u: &str| {
+        straight("a", 0.0, 100.0, "", "").replace(
+            "<line/>",
+            &format!(r#"<paramPoly3 aU="0" bU="{u}" cU="0" dU="0" aV="0" bV="0" cV="0" dV="0" pRange="normalized"/>"#),
+        )
+    };
+    parse_xodr(&document(&road("100")), "t").expect("a 100 m curve of length 100");
+    let text = document(&road("1"));
+    let (line, message) = parse_err(&text);
+    assert!(
+        message.contains("1.00 m long") && message.contains("`length` 100 m"),
+        "{message}"
+    );
+    assert_eq!(line, line_of(&text, "<paramPoly3"));
 }
