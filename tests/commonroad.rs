@@ -720,8 +720,17 @@ fn a_clip_repeated_under_another_id_or_cut_shorter_is_read_once() {
     let renamed = write(&dir, "b.xml", &variant(101, 300, "ZAM_Copy-1_1_T-1", 0.0));
     // The same car's first 8.1 s only: a run of the original's states.
     let cut = write(&dir, "c.xml", &variant(81, 0, "ZAM_Cut-1_1_T-1", 0.0));
-    // Another car, a lane over: different traffic, kept.
-    write(&dir, "d.xml", &variant(101, 0, "ZAM_Other-1_1_T-1", 3.5));
+    // Another car, a lane over at another speed: different traffic, kept.
+    write(
+        &dir,
+        "d.xml",
+        &variant(101, 0, "ZAM_Other-1_1_T-1", 3.5).replace(
+            "<velocity><exact>1.0</exact>",
+            "<velocity><exact>1.05</exact>",
+        ),
+    );
+    // The first clip moved 2 cm sideways as a whole: still its traffic.
+    write(&dir, "e.xml", &variant(101, 0, "ZAM_Moved-1_1_T-1", 0.02));
     let config = SceneConfig::default();
     let single = commonroad_scenes(&load_commonroad(&[original], None).unwrap(), &config)
         .unwrap()
@@ -735,12 +744,21 @@ fn a_clip_repeated_under_another_id_or_cut_shorter_is_read_once() {
     .unwrap();
     let repeats: Vec<Option<&str>> = summaries.iter().map(|s| s.repeats.as_deref()).collect();
     let a = dir.path().join("a.xml").display().to_string();
-    assert_eq!(repeats, [None, Some(a.as_str()), Some(a.as_str()), None]);
+    assert_eq!(
+        repeats,
+        [
+            None,
+            Some(a.as_str()),
+            Some(a.as_str()),
+            None,
+            Some(a.as_str())
+        ]
+    );
     assert_eq!(scenes.len(), 2 * single);
     assert!(
         scenes
             .iter()
-            .all(|s| !s.id.starts_with("ZAM_Copy") && !s.id.starts_with("ZAM_Cut"))
+            .all(|s| s.id.starts_with("ZAM_Test") || s.id.starts_with("ZAM_Other"))
     );
     let why = summaries[1].no_scene_because.as_deref().unwrap();
     assert!(why.contains("a.xml") && why.contains("read once"), "{why}");

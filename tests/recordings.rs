@@ -450,8 +450,18 @@ fn a_track_recorded_twice_under_two_ids_is_refused() {
     let nudged = track("b", 7.0).replace(",0,0,10,", ",0.000001,0,10,");
     let message = error(&format!("{HEADER}\n{}{nudged}", track("a", 0.0)));
     assert_contains(&message, &["track_id b", "same track as track_id a"]);
-    // The same times and commands on another path are another track.
-    let other = track("c", 0.0).replace(",0,0,10,", ",1,0,10,");
+    // So is a copy moved as a whole (the same motion and commands, a centimetre or a lane
+    // over): it carries no information of its own.
+    for shift in ["0.01", "3.5"] {
+        let moved = track("b", 7.0).replace(",0,0,10,", &format!(",{shift},0,10,"));
+        let message = error(&format!("{HEADER}\n{}{moved}", track("a", 0.0)));
+        assert_contains(
+            &message,
+            &["track_id b", "same track as track_id a", "moved"],
+        );
+    }
+    // Another speed on the same path is another track.
+    let other = track("c", 0.0).replace(",0,10,", ",0,10.5,");
     Recordings::parse("rec.csv", &format!("{HEADER}\n{}{other}", track("a", 0.0)))
         .expect("two tracks");
 }

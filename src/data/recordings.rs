@@ -152,31 +152,34 @@ impl RecordedTrack {
 }
 
 /// How close (per channel) two tracks' samples must all be for the tracks to count as one
-/// recorded twice: a millimetre, a tenth of a milliradian. No two vehicles drive that close
-/// to the same path for a whole track.
-const SAME_POSITION_M: f64 = 1e-3;
+/// recorded twice: speeds, headings and commands within a millimetre (per second) and a tenth
+/// of a milliradian, positions one constant offset apart to within a millimetre (a copy moved
+/// as a whole is still a copy). Two runs that are really two differ at least by their noise.
+const SAME_OFFSET_M: f64 = 1e-3;
 const SAME_ANGLE_RAD: f64 = 1e-4;
 const SAME_SPEED: f64 = 1e-3;
+/// A track that travels less than this (m) stands: it must repeat the other's positions
+/// themselves, not up to an offset.
+const STANDING_M: f64 = 1.0;
 
-/// Refuses a track recorded twice under two ids (the same motion and commands up to
-/// [`SAME_POSITION_M`] and friends, whatever the times): split into fitting and held-out
-/// tracks, one copy would be scored against the other, and the held-out error would be a
-/// training error.
+/// Refuses a track recorded twice under two ids (the same motion and commands, positions up
+/// to a constant offset, whatever the times): split into fitting and held-out tracks, one copy
+/// would be scored against the other, and the held-out error would be a training error.
 fn refuse_repeated_tracks(source: &str, tracks: &[RecordedTrack]) -> Result<()> {
-    // Candidates share a length and nearly a first x: sorted so, each track is compared with
-    // the few that follow it within the tolerance.
+    // Candidates share a length and nearly a first speed: sorted so, each track is compared
+    // with the few that follow it within the tolerance.
     let mut order: Vec<usize> = (0..tracks.len())
         .filter(|&i| !tracks[i].x.is_empty())
         .collect();
     order.sort_by(|&a, &b| {
-        (tracks[a].len(), tracks[a].x[0])
-            .partial_cmp(&(tracks[b].len(), tracks[b].x[0]))
+        (tracks[a].len(), tracks[a].speed[0])
+            .partial_cmp(&(tracks[b].len(), tracks[b].speed[0]))
             .unwrap_or(std::cmp::Ordering::Equal)
     });
     for (k, &a) in order.iter().enumerate() {
         for &b in &order[k + 1..] {
             let (ta, tb) = (&tracks[a], &tracks[b]);
-            if tb.len() != ta.len() || tb.x[0] - ta.x[0] > SAME_POSITION_M {
+            if tb.len() != ta.len() || tb.speed[0] - ta.speed[0] > SAME_SPEED {
                 break;
             }
             if same_motion(ta, tb) {
@@ -186,8 +189,8 @@ fn refuse_repeated_tracks(source: &str, tracks: &[RecordedTrack]) -> Result<()> 
                     format!("track_id {}", second.id),
                     format!(
                         "is the same track as track_id {} (the same samples within a \
-                         millimetre, under another id); a repeated track would be held out \
-                         against its own copy",
+                         millimetre, or moved as a whole, under another id); a repeated track \
+                         would be held out against its own copy",
                         first.id
                     ),
                 ));
@@ -202,12 +205,20 @@ fn same_motion(a: &RecordedTrack, b: &RecordedTrack) -> bool {
     let close = |x: &[f64], y: &[f64], tolerance: f64| {
         x.iter().zip(y).all(|(p, q)| (p - q).abs() <= tolerance)
     };
-    close(&a.x, &b.x, SAME_POSITION_M)
-        && close(&a.y, &b.y, SAME_POSITION_M)
-        && close(&a.heading, &b.heading, SAME_ANGLE_RAD)
+    let same_channels = close(&a.heading, &b.heading, SAME_ANGLE_RAD)
         && close(&a.speed, &b.speed, SAME_SPEED)
         && close(&a.accel_cmd, &b.accel_cmd, SAME_SPEED)
-        && close(&a.steer_cmd, &b.steer_cmd, SAME_ANGLE_RAD)
+        && close(&a.steer_cmd, &b.steer_cmd, SAME_ANGLE_RAD);
+    if !same_channels {
+        return false;
+    }
+    let offset = (a.x[0] - b.x[0], a.y[0] - b.y[0]);
+    let constant = (0..a.len()).all(|k| {
+        (a.x[k] - b.x[k] - offset.0).abs() <= SAME_OFFSET_M
+            && (a.y[k] - b.y[k] - offset.1).abs() <= SAME_OFFSET_M
+    });
+    let travels = (0..a.len()).any(|k| (a.x[k] - a.x[0]).hypot(a.y[k] - a.y[0]) > STANDING_M);
+    constant && (travels || offset.0.hypot(offset.1) <= SAME_OFFSET_M)
 }
 
 /// All tracks of one recordings file.

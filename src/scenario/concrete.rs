@@ -167,23 +167,31 @@ fn check_history_motion(source: &str, i: usize, a: &ScenarioAgent, dt: f64) -> R
         .enumerate()
         .filter_map(|(k, s)| s.map(|s| (k, s)))
         .collect();
+    // The recordings reader's rule for a jump between two states.
+    let jump = |(j, p): (usize, [f64; 4]), (k, q): (usize, [f64; 4])| {
+        let step = (k - j) as f64 * dt;
+        let distance = (q[0] - p[0]).hypot(q[1] - p[1]);
+        let allowed = JUMP_FACTOR * p[3].max(q[3]) * step + JUMP_SLACK;
+        (distance > allowed).then(|| {
+            format!(
+                "states[{k}] moves {distance:.2} m in {step} s from states[{j}], but its \
+                 speeds ({} and {} m/s) allow at most {allowed:.2} m: a jump (teleport or \
+                 corrupted state)",
+                p[3], q[3]
+            )
+        })
+    };
+    // One state far from both neighbours, which agree with each other, is the one at fault,
+    // however short the history (its two jumps would otherwise pass for wrong speed units).
+    for w in states.windows(3) {
+        if jump(w[0], w[1]).is_some() && jump(w[1], w[2]).is_some() && jump(w[0], w[2]).is_none() {
+            let message = jump(w[0], w[1]).unwrap_or_default();
+            return Err(Error::invalid(source, format!("agents[{i}]"), message));
+        }
+    }
     let jumps: Vec<String> = states
         .windows(2)
-        .filter_map(|pair| {
-            let ((j, p), (k, q)) = (pair[0], pair[1]);
-            let step = (k - j) as f64 * dt;
-            let distance = (q[0] - p[0]).hypot(q[1] - p[1]);
-            // The recordings reader's rule for a jump.
-            let allowed = JUMP_FACTOR * p[3].max(q[3]) * step + JUMP_SLACK;
-            (distance > allowed).then(|| {
-                format!(
-                    "states[{k}] moves {distance:.2} m in {step} s from states[{j}], but its \
-                     speeds ({} and {} m/s) allow at most {allowed:.2} m: a jump (teleport or \
-                     corrupted state)",
-                    p[3], q[3]
-                )
-            })
-        })
+        .filter_map(|pair| jump(pair[0], pair[1]))
         .collect();
     // A few steps too long for their speeds: those states are at fault. Most of them: the
     // speeds are (units, a zeroed column), which the motion check names.

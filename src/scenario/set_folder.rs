@@ -2,8 +2,9 @@
 //! JSON file per concrete scenario), read as sets: every file of a set folder is scored or
 //! trained on, so a file that does not belong there would change the result unseen. Refused:
 //! a hidden `.json` (the leftover of an interrupted write), a scenario labelled with another
-//! set than its folder, the same scenario twice under two names, and a scenario of another
-//! set (a training scenario copied into `eval/`).
+//! set than its folder, the same scenario twice under two names (also with its states nudged:
+//! the same draw of the same family), and a scenario of another set (a training scenario
+//! copied into `eval/`).
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -34,9 +35,10 @@ pub fn load_scenario_set(root: &Path, set: ScenarioSet) -> Result<Vec<ConcreteSc
                 ),
             ));
         }
-        let key = fingerprint(&scenario)?;
-        if let Some(first) = seen.insert(key, path.clone()) {
-            return Err(duplicate(&path, &first));
+        for key in identities(&scenario)? {
+            if let Some(first) = seen.insert(key, path.clone()) {
+                return Err(duplicate(&path, &first));
+            }
         }
         scenarios.push(scenario);
     }
@@ -67,8 +69,25 @@ fn scenario_files(dir: &Path) -> Result<Vec<PathBuf>> {
     Ok(out)
 }
 
-/// What makes two scenarios the same drive: everything but the labels a copy could change
-/// (set, index, seed, description).
+/// What makes two scenarios the same drive, either of two keys:
+/// - the content but the labels a copy could change (set, index, seed, description);
+/// - the draw: the family and every drawn value, when one of them is continuous. Two
+///   independent draws never repeat a continuous value to the last digit, so a copy whose
+///   states were nudged (a millimetre, a hundred metres) is still the draw it was.
+fn identities(scenario: &ConcreteScenario) -> Result<Vec<String>> {
+    let mut keys = vec![fingerprint(scenario)?];
+    if scenario.parameters.values().any(|v| v.fract() != 0.0) {
+        let draw: Vec<String> = scenario
+            .parameters
+            .iter()
+            .map(|(name, value)| format!("{name}={:x}", value.to_bits()))
+            .collect();
+        keys.push(format!("draw {} {}", scenario.family, draw.join(" ")));
+    }
+    Ok(keys)
+}
+
+/// The content key of [`identities`].
 fn fingerprint(scenario: &ConcreteScenario) -> Result<String> {
     let bare = ConcreteScenario {
         set: ScenarioSet::Train,
@@ -96,7 +115,7 @@ fn duplicate(path: &Path, first: &Path) -> Error {
     )
 }
 
-/// Refuses a scenario of `seen` (fingerprint -> file) that is also in another set's folder
+/// Refuses a scenario of `seen` ([`identities`] -> file) that is also in another set's folder
 /// under `root`. Files there that do not load are left to that set's own loading.
 fn refuse_other_sets(
     root: &Path,
@@ -112,7 +131,10 @@ fn refuse_other_sets(
             let Ok(scenario) = ConcreteScenario::from_json_file(&path) else {
                 continue;
             };
-            if let Some(ours) = seen.get(&fingerprint(&scenario)?) {
+            let ours = identities(&scenario)?
+                .into_iter()
+                .find_map(|key| seen.get(&key));
+            if let Some(ours) = ours {
                 return Err(Error::invalid(
                     ours.display().to_string(),
                     "scenario",

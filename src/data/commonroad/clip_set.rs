@@ -1,6 +1,6 @@
 //! Clips read together are checked as a set: every scene id must be unique, and a clip that
-//! repeats another's driving under another name (a renamed copy, a copy cut shorter in time,
-//! another planning problem over the same traffic) is found, so that its vehicles are read
+//! repeats another's driving under another name (a renamed copy, a copy cut shorter in time
+//! or moved as a whole, another planning problem over the same traffic) is found, so that its vehicles are read
 //! once: twice, a training set would weigh them double and an evaluation count them twice.
 
 use std::collections::{BTreeSet, HashMap};
@@ -11,12 +11,16 @@ use crate::data::track::{Track, TrackSample};
 use crate::error::{Error, Result};
 use crate::geometry::wrap_angle;
 
-/// How close two samples must be, per channel, to count as the same recorded state: a
-/// millimetre, a tenth of a milliradian, a millimetre per second. No two vehicles drive that
-/// close to each other for a whole track.
-const SAME_POSITION_M: f64 = 1e-3;
-const SAME_HEADING_RAD: f64 = 1e-4;
+/// How closely a run of samples must repeat another to be the same recorded driving: speeds
+/// and headings within a millimetre per second and a tenth of a milliradian, positions apart
+/// by one constant offset to within a millimetre (a copy moved as a whole is still a copy).
+/// Two vehicles that are really two share neither their speeds nor their positions' noise.
 const SAME_SPEED: f64 = 1e-3;
+const SAME_HEADING_RAD: f64 = 1e-4;
+const SAME_OFFSET_M: f64 = 1e-3;
+/// A track that travels less than this (m) is a standing vehicle: any offset would match it,
+/// so it must repeat the other's positions themselves.
+const STANDING_M: f64 = 1.0;
 
 /// Refuses two clips that would give scenes the same id.
 pub fn check_clip_names(clips: &[CommonRoadClip]) -> Result<()> {
@@ -24,6 +28,13 @@ pub fn check_clip_names(clips: &[CommonRoadClip]) -> Result<()> {
     for clip in clips {
         let name = clip.benchmark_id_or_file();
         if let Some((_, other)) = names.iter().find(|(n, _)| *n == name) {
+            if same_file(other, &clip.path) {
+                return Err(Error::invalid(
+                    clip.path.display().to_string(),
+                    "file",
+                    "is given twice (as a file or within a folder); expected each clip once",
+                ));
+            }
             return Err(Error::invalid(
                 clip.path.display().to_string(),
                 "benchmarkID",
@@ -38,11 +49,19 @@ pub fn check_clip_names(clips: &[CommonRoadClip]) -> Result<()> {
     Ok(())
 }
 
+fn same_file(a: &Path, b: &Path) -> bool {
+    match (a.canonicalize(), b.canonicalize()) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => a == b,
+    }
+}
+
 /// A track of one clip, by (clip, track) index.
 type TrackRef = (usize, usize);
 
 /// For each clip, the clip that already holds all of its driving, if one does: every vehicle
-/// of it recorded (the same states, whatever the ids and times) within that clip. CommonRoad
+/// of it recorded (the same motion, whatever the ids, times and a constant shift) within that
+/// clip. CommonRoad
 /// ships such repeats on purpose (`_1` and `_2` of a benchmark are two planning problems over
 /// the same traffic), so a repeat is read once rather than refused. Of two identical clips the
 /// later repeats the earlier; a clip cut shorter repeats the longer one.
@@ -87,13 +106,13 @@ fn clips_holding_every_track(
 /// For each track (with two samples or more), the other clips that hold its samples as a
 /// contiguous run of one of their tracks.
 fn clips_holding_each_track(clips: &[CommonRoadClip]) -> HashMap<TrackRef, BTreeSet<usize>> {
-    // Every track's first sample, sorted by x: each sample of every track is then looked up
-    // by x among the few first samples within a millimetre, and only those runs compared.
+    // Every track's first sample, sorted by speed: each sample of every track is then looked
+    // up among the few first samples of about its speed, and only those runs compared.
     let mut starts: Vec<(f64, TrackRef)> = Vec::new();
     for (c, clip) in clips.iter().enumerate() {
         for (t, track) in clip.recording.tracks.iter().enumerate() {
             if track.samples.len() >= 2 {
-                starts.push((track.samples[0].state.x, (c, t)));
+                starts.push((track.samples[0].state.speed, (c, t)));
             }
         }
     }
@@ -102,10 +121,10 @@ fn clips_holding_each_track(clips: &[CommonRoadClip]) -> HashMap<TrackRef, BTree
     for (c, clip) in clips.iter().enumerate() {
         for track in &clip.recording.tracks {
             for k in 0..track.samples.len() {
-                let x = track.samples[k].state.x;
-                let first = starts.partition_point(|s| s.0 < x - SAME_POSITION_M);
-                for &(start_x, (bc, bt)) in &starts[first..] {
-                    if start_x > x + SAME_POSITION_M {
+                let speed = track.samples[k].state.speed;
+                let first = starts.partition_point(|s| s.0 < speed - SAME_SPEED);
+                for &(start_speed, (bc, bt)) in &starts[first..] {
+                    if start_speed > speed + SAME_SPEED {
                         break;
                     }
                     if bc == c {
@@ -122,19 +141,34 @@ fn clips_holding_each_track(clips: &[CommonRoadClip]) -> HashMap<TrackRef, BTree
     holders
 }
 
-/// Whether `run`'s samples are `track`'s samples from index `from` on, state by state.
+/// Whether `run`'s samples are `track`'s samples from index `from` on: the same speeds and
+/// headings, and positions one constant offset apart (none for a standing vehicle).
 fn holds_run(track: &Track, from: usize, run: &Track) -> bool {
-    track.samples.len() - from >= run.samples.len()
-        && track.samples[from..]
-            .iter()
-            .zip(&run.samples)
-            .all(|(p, q)| same_state(p, q))
+    if track.samples.len() - from < run.samples.len() {
+        return false;
+    }
+    let pairs = || track.samples[from..].iter().zip(&run.samples);
+    let same_motion = pairs().all(|(p, q)| {
+        (p.state.speed - q.state.speed).abs() <= SAME_SPEED
+            && wrap_angle(p.state.heading - q.state.heading).abs() <= SAME_HEADING_RAD
+    });
+    if !same_motion {
+        return false;
+    }
+    let offset = |p: &TrackSample, q: &TrackSample| [p.state.x - q.state.x, p.state.y - q.state.y];
+    let first = offset(&track.samples[from], &run.samples[0]);
+    let constant = pairs().all(|(p, q)| {
+        let d = offset(p, q);
+        (d[0] - first[0]).abs() <= SAME_OFFSET_M && (d[1] - first[1]).abs() <= SAME_OFFSET_M
+    });
+    constant && (travels(run) || first[0].hypot(first[1]) <= SAME_OFFSET_M)
 }
 
-fn same_state(p: &TrackSample, q: &TrackSample) -> bool {
-    let (p, q) = (&p.state, &q.state);
-    (p.x - q.x).abs() <= SAME_POSITION_M
-        && (p.y - q.y).abs() <= SAME_POSITION_M
-        && wrap_angle(p.heading - q.heading).abs() <= SAME_HEADING_RAD
-        && (p.speed - q.speed).abs() <= SAME_SPEED
+/// Whether a track moves further than [`STANDING_M`] from its first position.
+fn travels(track: &Track) -> bool {
+    let start = &track.samples[0].state;
+    track
+        .samples
+        .iter()
+        .any(|s| (s.state.x - start.x).hypot(s.state.y - start.y) > STANDING_M)
 }
