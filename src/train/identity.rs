@@ -14,44 +14,77 @@ use crate::io::Format;
 use super::config::TrainConfig;
 
 /// sha256 of every file `config` reads during a run (not its warm start, which only a new run
-/// reads), keyed by "field path".
+/// reads), keyed by "field path"; a folder input gives one entry per file the run reads from
+/// it ("field folder/file"), so a change is named by its file and a file the run does not
+/// read (a scenario folder's eval/, a note beside the clips) changes nothing.
 pub fn input_digests(config: &TrainConfig) -> Result<BTreeMap<String, String>> {
     let mut out = BTreeMap::new();
     for (field, path) in config.input_paths() {
         if field == "init.policy" {
             continue;
         }
-        let format = match field {
-            "dynamics" => Format::Settings,
-            "data.curated" => Format::SceneList,
-            "data.commonroad.path" => Format::CommonRoad,
-            _ => Format::Parameters,
-        };
-        out.insert(
-            format!("{field} {}", path.display()),
-            digest(&path, format)?,
-        );
+        if !path.is_dir() {
+            let bytes = crate::io::read_bytes(&path, format_of(field))?;
+            out.insert(format!("{field} {}", path.display()), sha256_hex(&bytes));
+            continue;
+        }
+        for file in files_under(&path)? {
+            let relative = file.strip_prefix(&path).unwrap_or(&file);
+            if read_from_folder(field, relative) {
+                let bytes = crate::io::read_bytes(&file, format_of(field))?;
+                out.insert(format!("{field} {}", file.display()), sha256_hex(&bytes));
+            }
+        }
     }
     Ok(out)
 }
 
-/// sha256 of the file `path`, or of a folder's files (their names relative to it and their
-/// contents, in name order; rtr's own hidden files skipped).
-fn digest(path: &Path, format: Format) -> Result<String> {
-    if !path.is_dir() {
-        return Ok(sha256_hex(&crate::io::read_bytes(path, format)?));
+/// The read cap of a field's files.
+fn format_of(field: &str) -> Format {
+    match field {
+        "dynamics" => Format::Settings,
+        "data.curated" => Format::SceneList,
+        "data.commonroad.path" => Format::CommonRoad,
+        "data.longtail_dir" => Format::Scenario,
+        _ => Format::Parameters,
     }
-    let mut listing = String::new();
-    for file in files_under(path)? {
-        let relative = file
-            .strip_prefix(path)
-            .unwrap_or(&file)
-            .display()
-            .to_string();
-        let bytes = crate::io::read_bytes(&file, Format::Parameters)?;
-        listing.push_str(&format!("{relative} {}\n", sha256_hex(&bytes)));
+}
+
+/// Whether a run reads the file `relative` of the folder a `field` names: the training set of
+/// a scenario folder, the clips of a CommonRoad folder, any file of another folder.
+fn read_from_folder(field: &str, relative: &Path) -> bool {
+    let name = relative.to_string_lossy();
+    match field {
+        "data.longtail_dir" => relative.starts_with("train") && name.ends_with(".json"),
+        "data.commonroad.path" => name.ends_with(".xml") || name.ends_with(".xml.gz"),
+        _ => true,
     }
-    Ok(sha256_hex(listing.as_bytes()))
+}
+
+/// The digests runs recorded before [`input_digests`] kept one entry per file: one per folder,
+/// over all its files' names and contents.
+fn folder_digests(config: &TrainConfig) -> Result<BTreeMap<String, String>> {
+    let mut out = BTreeMap::new();
+    for (field, path) in config.input_paths() {
+        if field == "init.policy" || !path.is_dir() {
+            continue;
+        }
+        let mut listing = String::new();
+        for file in files_under(&path)? {
+            let relative = file
+                .strip_prefix(&path)
+                .unwrap_or(&file)
+                .display()
+                .to_string();
+            let bytes = crate::io::read_bytes(&file, Format::Parameters)?;
+            listing.push_str(&format!("{relative} {}\n", sha256_hex(&bytes)));
+        }
+        out.insert(
+            format!("{field} {}", path.display()),
+            sha256_hex(listing.as_bytes()),
+        );
+    }
+    Ok(out)
 }
 
 fn files_under(dir: &Path) -> Result<Vec<std::path::PathBuf>> {
@@ -72,36 +105,48 @@ fn files_under(dir: &Path) -> Result<Vec<std::path::PathBuf>> {
     Ok(out)
 }
 
-/// The first input whose contents differ between `recorded` (when the run started) and `now`,
-/// as a message; `None` when all agree. A run recorded without digests (an older checkpoint)
-/// has nothing to compare.
+/// The first input whose contents differ between `recorded` (when the run started) and now
+/// (`config`'s inputs as they are), as a message; `None` when all agree. A run recorded
+/// without digests (an older checkpoint) has nothing to compare; one recorded with a digest
+/// per folder is compared folder by folder.
 pub fn changed_input(
     recorded: &BTreeMap<String, String>,
-    now: &BTreeMap<String, String>,
-) -> Option<String> {
+    config: &TrainConfig,
+) -> Result<Option<String>> {
     if recorded.is_empty() {
-        return None;
+        return Ok(None);
     }
-    recorded
-        .iter()
-        .find_map(|(input, then)| match now.get(input) {
-            Some(current) if current == then => None,
-            Some(current) => Some(format!(
+    let now = input_digests(config)?;
+    let per_folder = folder_digests(config)?;
+    for (input, then) in recorded {
+        let current = now.get(input).or_else(|| per_folder.get(input));
+        let change = match current {
+            Some(current) if current == then => continue,
+            Some(current) => format!(
                 "{input} has other contents than when the run started (sha256 {} then, {} now)",
                 &then[..12],
                 &current[..12]
-            )),
-            None => Some(format!("{input} is no longer read by this config")),
-        })
+            ),
+            None => format!("{input} is no longer read (removed, or not named by this config)"),
+        };
+        return Ok(Some(change));
+    }
+    // A file the run reads now and did not read then (added to a folder); a run recorded
+    // with a digest per folder has compared it above.
+    let per_file = !recorded.keys().any(|k| per_folder.contains_key(k));
+    if per_file && let Some(added) = now.keys().find(|k| !recorded.contains_key(*k)) {
+        return Ok(Some(format!("{added} was not there when the run started")));
+    }
+    Ok(None)
 }
 
 /// Refuses to go on with a run whose inputs changed since it started.
 pub fn check_unchanged(
     run_dir: &Path,
     recorded: &BTreeMap<String, String>,
-    now: &BTreeMap<String, String>,
+    config: &TrainConfig,
 ) -> Result<()> {
-    match changed_input(recorded, now) {
+    match changed_input(recorded, config)? {
         None => Ok(()),
         Some(change) => Err(Error::InvalidArgument(format!(
             "{}: {change}; resuming would change the run's physics or data mid-run. Restore \
@@ -122,7 +167,7 @@ pub fn check_same_run(run_dir: &Path, config: &TrainConfig) -> Result<()> {
     let stored = TrainConfig::from_toml_str(&state.config_toml, &newest.display().to_string())?;
     let difference = match stored.identity_difference(config)? {
         Some(difference) => Some(difference),
-        None => changed_input(&state.input_digests, &input_digests(config)?),
+        None => changed_input(&state.input_digests, config)?,
     };
     match difference {
         None => Ok(()),
@@ -147,26 +192,64 @@ mod tests {
         config.dynamics = Some(dynamics.clone());
         let then = input_digests(&config).expect("digests");
         assert_eq!(then.len(), 1);
-        assert!(changed_input(&then, &input_digests(&config).expect("again")).is_none());
+        assert!(changed_input(&then, &config).expect("compare").is_none());
         std::fs::write(&dynamics, "[steering_lag]\ntau = 0.5\n").expect("write");
-        let change = changed_input(&then, &input_digests(&config).expect("now")).expect("changed");
+        let change = changed_input(&then, &config)
+            .expect("compare")
+            .expect("changed");
         assert!(change.starts_with("dynamics "), "{change}");
         assert!(
-            changed_input(&BTreeMap::new(), &then).is_none(),
+            changed_input(&BTreeMap::new(), &config)
+                .expect("compare")
+                .is_none(),
             "an old checkpoint"
         );
     }
 
+    /// A scenario folder counts by its training files only, each named when it changes; a
+    /// run recorded with one digest for the whole folder is still compared.
     #[test]
-    fn a_folder_digest_covers_names_and_contents() {
+    fn a_scenario_folder_is_compared_file_by_file_over_what_training_reads() {
         let dir = tempfile::tempdir().expect("temp dir");
         let sets = dir.path().join("scenarios");
-        std::fs::create_dir_all(sets.join("train")).expect("mkdir");
-        std::fs::write(sets.join("train/a.json"), "{}").expect("write");
-        let first = digest(&sets, Format::Scenario).expect("digest");
+        for set in ["train", "eval"] {
+            std::fs::create_dir_all(sets.join(set)).expect("mkdir");
+            std::fs::write(sets.join(set).join("a.json"), "{}").expect("write");
+        }
+        let mut config =
+            TrainConfig::from_toml_str("method = \"RTR\"\nalpha = 0.5", "test").expect("config");
+        config.data.longtail_dir = Some(sets.clone());
+        let then = input_digests(&config).expect("digests");
+        assert_eq!(then.len(), 1, "{then:?}");
+        let legacy = folder_digests(&config).expect("per folder");
+        // What training does not read changes nothing.
+        std::fs::write(sets.join("eval/a.json"), "{ }").expect("write");
+        std::fs::write(sets.join("train/notes.txt"), "mine").expect("write");
         std::fs::write(sets.join(".rtr-output"), "train/a.json\n").expect("write");
-        assert_eq!(digest(&sets, Format::Scenario).expect("digest"), first);
+        assert!(changed_input(&then, &config).expect("compare").is_none());
+        // A changed or added training scenario is named.
         std::fs::write(sets.join("train/a.json"), "{ }").expect("write");
-        assert_ne!(digest(&sets, Format::Scenario).expect("digest"), first);
+        let change = changed_input(&then, &config)
+            .expect("compare")
+            .expect("changed");
+        assert!(change.contains("train/a.json"), "{change}");
+        std::fs::write(sets.join("train/a.json"), "{}").expect("write");
+        std::fs::write(sets.join("train/b.json"), "{}").expect("write");
+        let change = changed_input(&then, &config)
+            .expect("compare")
+            .expect("added");
+        assert!(
+            change.contains("train/b.json") && change.contains("not there"),
+            "{change}"
+        );
+        // A run recorded with the folder's digest: compared as a whole.
+        let change = changed_input(&legacy, &config)
+            .expect("compare")
+            .expect("changed");
+        assert!(change.contains("has other contents"), "{change}");
+        std::fs::remove_file(sets.join("train/b.json")).expect("remove");
+        std::fs::write(sets.join("eval/a.json"), "{}").expect("write");
+        std::fs::remove_file(sets.join("train/notes.txt")).expect("remove");
+        assert!(changed_input(&legacy, &config).expect("compare").is_none());
     }
 }

@@ -251,13 +251,12 @@ impl<'d> Trainer<'d> {
                         run_dir.display(),
                     )));
                 }
-                super::identity::check_unchanged(run_dir, &c.state.input_digests, &digests)?;
+                super::identity::check_unchanged(run_dir, &c.state.input_digests, &config)?;
                 check_position(&c.state, &dir, &config, data)?;
                 let mut c = c;
-                // A run recorded before digests were kept records them from here on.
-                if c.state.input_digests.is_empty() {
-                    c.state.input_digests = digests;
-                }
+                // Unchanged: recorded from here on as this version records them (a run
+                // recorded without digests, or with one per folder, is brought up to date).
+                c.state.input_digests = digests;
                 (
                     c.policy,
                     c.value,
