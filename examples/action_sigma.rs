@@ -20,7 +20,7 @@ use rtr::train::imitation::logged_action_fit;
 const BATCH: usize = 16;
 
 fn main() -> std::process::ExitCode {
-    match run() {
+    match run().and_then(|()| Ok(rtr::io::console::check_stdout()?)) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
             rtr::errln!("action_sigma: {e}");

@@ -65,7 +65,7 @@ struct Case {
 // Errors print as their message (Display) with exit status 2, as in the other probes; returning
 // them from `main` would print their Debug form.
 fn main() -> std::process::ExitCode {
-    match run() {
+    match run().and_then(|()| Ok(rtr::io::console::check_stdout()?)) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
             rtr::errln!("car_following: {e}");

@@ -57,7 +57,7 @@ const BRAKING_MPS2: f32 = -1.0;
 const LABEL_BINS: [(f32, f32); 4] = [(-8.0, -6.0), (-6.0, -3.0), (-3.0, -1.0), (-1.0, 4.0)];
 
 fn main() -> std::process::ExitCode {
-    match run() {
+    match run().and_then(|()| Ok(rtr::io::console::check_stdout()?)) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
             rtr::errln!("idm_distillation: {e}");

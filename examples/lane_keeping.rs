@@ -132,7 +132,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             show(&errors.alone)
         )?;
     }
-    Ok(())
+    Ok(rtr::io::console::check_stdout()?)
 }
 
 /// One scene per (lane, speed): a lone car on the lane centre with a constant-speed history

@@ -62,7 +62,7 @@ struct AgentSums {
 }
 
 fn main() -> std::process::ExitCode {
-    match run() {
+    match run().and_then(|()| Ok(rtr::io::console::check_stdout()?)) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
             rtr::errln!("ppo_signal: {e}");

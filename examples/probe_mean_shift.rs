@@ -110,5 +110,5 @@ fn measure(task: ProbeTask, variants: &[(f32, f64)]) -> rtr::Result<()> {
             outcomes.pct(outcomes.offroad)
         )?;
     }
-    Ok(())
+    rtr::io::console::check_stdout()
 }

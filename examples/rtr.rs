@@ -60,7 +60,7 @@ struct Args {
 
 fn main() -> std::process::ExitCode {
     rtr::allocator::tune_for_tensors();
-    match run(Args::parse()) {
+    match run(Args::parse()).and_then(|()| rtr::io::console::check_stdout()) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
             rtr::errln!("error: {e}");

@@ -80,7 +80,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             }
         }
     }
-    Ok(())
+    Ok(rtr::io::console::check_stdout()?)
 }
 
 /// `name value, ...` for a table cell.

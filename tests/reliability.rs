@@ -120,6 +120,233 @@ fn a_full_stdout_is_an_error_that_names_it() {
     }
 }
 
+/// Every command's files are written before a full stdout ends it: a picture drawn to two
+/// formats keeps both.
+#[test]
+fn a_full_stdout_does_not_cut_the_files_short() {
+    if !Path::new("/dev/full").exists() {
+        return;
+    }
+    let dir = tempfile::tempdir().expect("temp dir");
+    let prefix = dir.path().join("curve");
+    let prefix_arg = prefix.to_str().expect("UTF-8");
+    for args in [
+        vec![
+            "map",
+            "render",
+            "--procedural",
+            "curve",
+            "--out",
+            prefix_arg,
+        ],
+        vec![
+            "recordings",
+            "generate",
+            "--effect",
+            "none",
+            "--tracks",
+            "3",
+            "--out",
+        ],
+    ] {
+        let mut args: Vec<String> = args.iter().map(|a| a.to_string()).collect();
+        if args[0] == "recordings" {
+            args.push(dir.path().join("rec.csv").display().to_string());
+        }
+        let what = args.join(" ");
+        let child = rtr()
+            .args(&args)
+            .stdout(std::fs::File::create("/dev/full").expect("/dev/full"))
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("the rtr binary runs");
+        let (status, stderr) = finish(child, Duration::from_secs(300), &what);
+        assert_no_panic(&stderr, &what);
+        assert_eq!(status.code(), Some(1), "`rtr {what}`:\n{stderr}");
+        assert!(stderr.contains("standard output"), "{stderr}");
+    }
+    for file in ["curve.png", "curve.svg", "rec.csv"] {
+        let size = std::fs::metadata(dir.path().join(file)).map_or(0, |m| m.len());
+        assert!(size > 0, "{file} was not written whole");
+    }
+}
+
+/// An output path that is a device, a FIFO or a socket is refused, never replaced by a file
+/// (`--out /dev/null` must not take /dev/null from the system); one that is a link to a file
+/// writes the file and leaves the link a link.
+#[test]
+fn an_output_that_is_not_a_file_is_refused_and_a_link_is_written_through() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let pipe = fifo(&dir.path().join("pipe.xodr"));
+    let pipe = pipe.to_str().expect("UTF-8");
+    assert_refused(
+        &["map", "export", "--procedural", "straight", "--out", pipe],
+        &["--out", "FIFO", "expected a regular file path"],
+    );
+    assert_refused(
+        &["recordings", "generate", "--effect", "none", "--out", pipe],
+        &["--out", "FIFO"],
+    );
+    if Path::new("/dev/null").exists() {
+        assert_refused(
+            &[
+                "map",
+                "export",
+                "--procedural",
+                "straight",
+                "--out",
+                "/dev/null",
+            ],
+            &["--out /dev/null", "is a device"],
+        );
+        let meta = std::fs::metadata("/dev/null").expect("/dev/null");
+        assert!(!meta.is_file(), "/dev/null was replaced by a file");
+    }
+    let target = dir.path().join("real.xodr");
+    std::fs::write(&target, "old").expect("write");
+    let link = dir.path().join("link.xodr");
+    std::os::unix::fs::symlink(&target, &link).expect("symlink");
+    let status = rtr()
+        .args(["map", "export", "--procedural", "straight", "--out"])
+        .arg(&link)
+        .stdout(Stdio::null())
+        .status()
+        .expect("runs");
+    assert!(status.success());
+    assert!(
+        std::fs::symlink_metadata(&link)
+            .expect("link")
+            .file_type()
+            .is_symlink(),
+        "the link is still a link"
+    );
+    let written = std::fs::read_to_string(&target).expect("target");
+    assert!(written.contains("<OpenDRIVE"), "the target was written");
+}
+
+/// A study folder is checked before the work: a file of the user's where results go, or the
+/// results of another command, refuse the command at its start.
+#[test]
+fn a_result_folder_is_checked_before_the_work() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let users = dir.path().join("users");
+    std::fs::create_dir(&users).expect("mkdir");
+    std::fs::write(users.join("table.md"), "my notes").expect("write");
+    let users = users.to_str().expect("UTF-8");
+    assert_refused(
+        &["eval", "--idm", "--out", users],
+        &["table.md", "rtr did not write", "nothing was written"],
+    );
+    assert_refused(
+        &[
+            "sweep",
+            "--config",
+            "experiments/main/rtr.toml",
+            "--points",
+            "1:0.5",
+            "--out",
+            users,
+        ],
+        &["table.md", "rtr did not write"],
+    );
+    assert_eq!(
+        std::fs::read_to_string(dir.path().join("users/table.md")).expect("read"),
+        "my notes"
+    );
+    // The results of `rtr eval` are not replaced by another study's.
+    let evaluated = dir.path().join("evaluated");
+    std::fs::create_dir(&evaluated).expect("mkdir");
+    std::fs::write(evaluated.join("results.json"), "{}").expect("write");
+    std::fs::write(evaluated.join(".rtr-output"), "# rtr eval\nresults.json\n").expect("write");
+    let evaluated = evaluated.to_str().expect("UTF-8");
+    assert_refused(
+        &["downstream", "--idm", "--out", evaluated],
+        &[
+            "holds the results of `rtr eval`",
+            "`rtr downstream` would replace them",
+        ],
+    );
+}
+
+/// What is named twice is refused, not done twice: a sweep point, a probe task, a
+/// checkpoint to evaluate or to average, a CommonRoad clip.
+#[test]
+fn an_input_named_twice_is_refused() {
+    assert_refused(
+        &[
+            "sweep",
+            "--config",
+            "experiments/main/rtr.toml",
+            "--points",
+            "1:0.5,1.0:0.50",
+            "--out",
+            "unused",
+        ],
+        &["sweep point 1:0.5 is given twice"],
+    );
+    assert_refused(
+        &["probe", "ppo", "--tasks", "brake,brake"],
+        &["`brake` is given twice"],
+    );
+    assert_refused(
+        &[
+            "eval",
+            "--checkpoint",
+            "models/il_main",
+            "--checkpoint",
+            "models/il_main/",
+            "--scenes",
+            "1",
+        ],
+        &["names the same policy", "pass each once"],
+    );
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = dir.path().join("avg");
+    assert_refused(
+        &[
+            "model",
+            "average",
+            "--checkpoint",
+            "models/il_main",
+            "--checkpoint",
+            "models/il_main/policy.bpk",
+            "--out",
+            out.to_str().expect("UTF-8"),
+        ],
+        &["holds the same weights as"],
+    );
+    let clip = "data/commonroad-us101/USA_US101-5_1_T-1.xml.gz";
+    assert_refused(
+        &[
+            "data",
+            "summary",
+            "--commonroad",
+            clip,
+            "--commonroad",
+            "data/commonroad-us101",
+        ],
+        &["USA_US101-5_1_T-1.xml.gz", "is given twice"],
+    );
+}
+
+/// A folder flag given a file is named with the folder it expects.
+#[test]
+fn a_folder_flag_given_a_file_names_the_flag() {
+    let file = "experiments/main/rtr.toml";
+    assert_refused(
+        &["scenarios", "list", "--families", file],
+        &["--families", "is a file", "expected a folder"],
+    );
+    assert_refused(
+        &["data", "summary", "--data", file],
+        &["--data", "is a file", "AUTOMATUM"],
+    );
+    assert_refused(
+        &["eval", "--idm", "--set", "longtail", "--scenarios", file],
+        &["--scenarios", "is a file", "rtr scenarios generate"],
+    );
+}
+
 /// A named pipe at `path` (nothing ever writes to it: an open for reading would block).
 fn fifo(path: &Path) -> PathBuf {
     let c_path = std::ffi::CString::new(path.to_str().expect("UTF-8 path")).expect("path");
@@ -489,7 +716,44 @@ fn a_scenario_folder_is_checked_as_a_set() {
         v["index"] = serde_json::json!(99);
         serde_json::to_vec_pretty(&v).expect("JSON")
     };
+    let relabelled_bytes = |bytes: &[u8], set: &str| {
+        let mut v: serde_json::Value = serde_json::from_slice(bytes).expect("JSON");
+        v["set"] = serde_json::Value::String(set.into());
+        v["index"] = serde_json::json!(98);
+        serde_json::to_vec_pretty(&v).expect("JSON")
+    };
+    // The same draw with every state's x moved by `dx` metres and a new seed.
+    let nudged = |path: &Path, dx: f64| {
+        let mut v: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(path).expect("read")).expect("JSON");
+        v["seed"] = serde_json::json!(12345);
+        for agent in v["agents"].as_array_mut().expect("agents") {
+            for state in agent["states"].as_array_mut().expect("states") {
+                if let Some(x) = state.get(0).and_then(serde_json::Value::as_f64) {
+                    state[0] = serde_json::json!(x + dx);
+                }
+            }
+        }
+        serde_json::to_vec_pretty(&v).expect("JSON")
+    };
+    // One state of the first agent moved 5 km: a teleport, not wrong speed units.
+    let teleported = |path: &Path| {
+        let mut v: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(path).expect("read")).expect("JSON");
+        let states = v["agents"][0]["states"].as_array_mut().expect("states");
+        let middle = states.len() / 2;
+        let x = states[middle][0]
+            .as_f64()
+            .expect("a state in the middle of the history");
+        states[middle][0] = serde_json::json!(x + 5000.0);
+        serde_json::to_vec_pretty(&v).expect("JSON")
+    };
     let cases: Vec<(&str, Vec<u8>, &str)> = vec![
+        (
+            "zz-teleported.json",
+            teleported(&first("eval")),
+            "a jump (teleport",
+        ),
         (
             ".rtr-tmp-tmp-1-0.json",
             std::fs::read(first("eval")).expect("read"),
@@ -508,6 +772,21 @@ fn a_scenario_folder_is_checked_as_a_set() {
         (
             "zz-relabelled.json",
             relabelled(&first("train"), "eval"),
+            "of the train set",
+        ),
+        (
+            "zz-nudged.json",
+            nudged(&first("eval"), 0.001),
+            "same scenario as",
+        ),
+        (
+            "zz-moved.json",
+            nudged(&first("eval"), 100.0),
+            "same scenario as",
+        ),
+        (
+            "zz-moved-train.json",
+            relabelled_bytes(&nudged(&first("train"), 0.001), "eval"),
             "of the train set",
         ),
     ];

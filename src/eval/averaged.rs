@@ -71,6 +71,18 @@ pub fn write_averaged_policy(
             })
         })
         .collect::<Result<Vec<_>>>()?;
+    // The same weights twice would pass for an average of two checkpoints.
+    for (k, source) in sources.iter().enumerate() {
+        if let Some(earlier) = sources[..k].iter().find(|s| s.sha256 == source.sha256) {
+            return Err(Error::InvalidArgument(format!(
+                "--checkpoint {} holds the same weights as {} (sha256 {}); average different \
+                 checkpoints",
+                source.policy.display(),
+                earlier.policy.display(),
+                &source.sha256[..12]
+            )));
+        }
+    }
     let report = AveragedSources {
         method: first.method.clone(),
         sources,

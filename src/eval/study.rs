@@ -97,6 +97,26 @@ pub fn load_entries(
         .iter()
         .map(|c| TrainedPolicy::load(c, device).map(|t| Entry::Trained(Box::new(t))))
         .collect::<Result<Vec<_>>>()?;
+    // One policy named twice (a run folder and its newest checkpoint, a trailing slash) would
+    // be two rows of one method.
+    let policies: Vec<(PathBuf, &PathBuf)> = entries
+        .iter()
+        .zip(checkpoints)
+        .filter_map(|(e, given)| match e {
+            Entry::Trained(t) => Some((t.path.canonicalize().unwrap_or(t.path.clone()), given)),
+            Entry::Idm { .. } => None,
+        })
+        .collect();
+    for (k, (policy, given)) in policies.iter().enumerate() {
+        if let Some((_, first)) = policies[..k].iter().find(|(p, _)| p == policy) {
+            return Err(Error::InvalidArgument(format!(
+                "--checkpoint {} names the same policy as --checkpoint {} ({}); pass each once",
+                given.display(),
+                first.display(),
+                policy.display()
+            )));
+        }
+    }
     if idm {
         entries.push(Entry::idm());
     }

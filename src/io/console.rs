@@ -1,31 +1,47 @@
 //! Standard output and error as fallible writes. `println!` panics when stdout is a closed
-//! pipe (`rtr data summary | head -1`) or a full disk; here a closed pipe silences the rest of
-//! the command's printing while it goes on to finish its files (as `head` expects), and any
-//! other failure is an error naming standard output. Use [`crate::outln!`] / [`crate::out!`]
+//! pipe (`rtr data summary | head -1`) or a full disk; here a failed stdout silences the rest
+//! of the command's printing while it goes on to finish its files: a closed pipe is then no
+//! error (as `head` expects), any other failure is one, naming standard output, reported when
+//! the command ends ([`check_stdout`]). Use [`crate::outln!`] / [`crate::out!`]
 //! for results and [`crate::errln!`] for progress and warnings.
 
 use std::io::Write;
+use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::error::{Error, Result};
 
-/// Set once the reader of standard output has gone away.
+/// Set once standard output can take no more: its reader has gone away, or it failed.
 static STDOUT_CLOSED: AtomicBool = AtomicBool::new(false);
 
-/// Writes `text` to standard output. A closed pipe is not an error: this and later writes are
-/// dropped. Any other failure (a full disk) is.
+/// How standard output failed (a full disk), kept until the command has finished its files.
+static STDOUT_FAILURE: Mutex<Option<std::io::Error>> = Mutex::new(None);
+
+/// Writes `text` to standard output. Once it cannot be written, this and later writes are
+/// dropped, so that a command still finishes its files: a closed pipe is not an error, any
+/// other failure (a full disk) is kept for [`check_stdout`].
 pub fn write_stdout(text: &str) -> Result<()> {
     if STDOUT_CLOSED.load(Ordering::Relaxed) {
         return Ok(());
     }
     let mut out = std::io::stdout().lock();
-    match out.write_all(text.as_bytes()).and_then(|()| out.flush()) {
-        Ok(()) => Ok(()),
-        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => {
-            STDOUT_CLOSED.store(true, Ordering::Relaxed);
-            Ok(())
+    if let Err(e) = out.write_all(text.as_bytes()).and_then(|()| out.flush()) {
+        STDOUT_CLOSED.store(true, Ordering::Relaxed);
+        if e.kind() != std::io::ErrorKind::BrokenPipe
+            && let Ok(mut failure) = STDOUT_FAILURE.lock()
+        {
+            failure.get_or_insert(e);
         }
-        Err(e) => Err(Error::io("standard output", e)),
+    }
+    Ok(())
+}
+
+/// The error standard output met, if it failed other than by its reader going away: a
+/// program calls this after its command has written its files, and fails with it.
+pub fn check_stdout() -> Result<()> {
+    match STDOUT_FAILURE.lock().ok().and_then(|mut f| f.take()) {
+        Some(failure) => Err(Error::io("standard output", failure)),
+        None => Ok(()),
     }
 }
 

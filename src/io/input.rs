@@ -80,6 +80,23 @@ pub fn check_input_file(path: &Path, flag: &str) -> Result<()> {
     )))
 }
 
+/// Checks that the input `path` given with `flag` is a folder (`expected` says which, for the
+/// message), refusing a file, a FIFO, a device, a dangling link or a missing path by the
+/// option's name rather than with the operating system's bare "Not a directory".
+pub fn check_input_folder(path: &Path, flag: &str, expected: &str) -> Result<()> {
+    let why = match path.metadata() {
+        Ok(m) if m.is_dir() => return Ok(()),
+        Ok(m) => format!("is {}", if m.is_file() { "a file" } else { kind_of(&m) }),
+        Err(_) if path.symlink_metadata().is_ok() => "is a link to nothing".to_string(),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => "does not exist".to_string(),
+        Err(e) => format!("cannot be read ({e})"),
+    };
+    Err(Error::InvalidArgument(format!(
+        "{flag} {}: {why}; expected {expected}",
+        path.display()
+    )))
+}
+
 /// Checks that the input `path` given with `flag` is a regular file or a folder (a model or
 /// run folder, a scenario set), refusing a FIFO, a device, a dangling link or a missing path
 /// by the option's name.
@@ -131,7 +148,7 @@ pub fn not_regular(path: &Path) -> Option<String> {
 }
 
 /// What a non-regular file is, for messages.
-fn kind_of(metadata: &std::fs::Metadata) -> &'static str {
+pub(super) fn kind_of(metadata: &std::fs::Metadata) -> &'static str {
     if metadata.is_dir() {
         return "a folder";
     }

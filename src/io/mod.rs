@@ -13,8 +13,8 @@ mod staged;
 
 pub use claim::{Inputs, OutputClaim, claim_output_file, claim_output_folder};
 pub use input::{
-    Capped, Format, capped, check_input_file, check_input_path, list_folder, not_regular,
-    open_regular, read_bytes, read_error, read_text, utf8_text,
+    Capped, Format, capped, check_input_file, check_input_folder, check_input_path, list_folder,
+    not_regular, open_regular, read_bytes, read_error, read_text, utf8_text,
 };
 pub use output::{
     atomic_write, atomic_write_with, create_file, create_folder, is_temporary_name, remove_file,
@@ -22,7 +22,7 @@ pub use output::{
 };
 pub(crate) use output::{remove_stale_temporaries, temp_name};
 pub use process_files::{read_process_file, write_process_file};
-pub use staged::StagedFolder;
+pub use staged::{StagedFolder, check_result_folder};
 
 use crate::error::{Error, Result};
 

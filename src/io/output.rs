@@ -81,6 +81,8 @@ pub(super) fn folder_of(path: &Path) -> &Path {
 /// renames it onto `path`. On error the temporary file is removed and `path` is left as it
 /// was.
 pub fn atomic_write_with(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+    let target = link_target(path);
+    let path = target.as_deref().unwrap_or(path);
     let folder = folder_of(path);
     create_folder(folder)?;
     let extension = path.extension().and_then(|e| e.to_str());
@@ -92,6 +94,19 @@ pub fn atomic_write_with(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -
         let _ = std::fs::remove_file(&tmp);
     }
     result
+}
+
+/// Where a symbolic link `path` leads, when it is one: the file written is its target, and
+/// the link stays a link.
+fn link_target(path: &Path) -> Option<std::path::PathBuf> {
+    let is_link = path
+        .symlink_metadata()
+        .is_ok_and(|m| m.file_type().is_symlink());
+    if is_link {
+        path.canonicalize().ok()
+    } else {
+        None
+    }
 }
 
 /// A writer that reported success left a non-empty file and it reached the disk (synced, so
@@ -189,6 +204,14 @@ pub(super) fn check_output(path: &Path, kind: OutputKind, flag: &str) -> Result<
     match (path.metadata(), kind) {
         (Ok(m), OutputKind::File) if m.is_dir() => {
             return fail("is a folder; expected a file path".into());
+        }
+        // Written by renaming a new file onto it, a device, FIFO or socket would be replaced
+        // (and /dev/null taken from the whole system): refused, not written through.
+        (Ok(m), OutputKind::File) if !m.is_file() => {
+            return fail(format!(
+                "is {}; expected a regular file path (rtr writes a new file there)",
+                super::input::kind_of(&m)
+            ));
         }
         (Ok(m), OutputKind::Folder) if !m.is_dir() => {
             return fail("is a file; expected a folder".into());

@@ -17,6 +17,8 @@ pub struct StagedFolder {
     /// Folders on the way to `target` that did not exist, outermost first.
     created: Vec<PathBuf>,
     committed: bool,
+    /// The command whose results these are (`rtr eval`), recorded with them.
+    kind: Option<&'static str>,
 }
 
 impl StagedFolder {
@@ -40,10 +42,19 @@ impl StagedFolder {
             staging: super::output::temp_name(&parent, "staging", None),
             created,
             committed: false,
+            kind: None,
         };
         // A leftover of a killed run with the same process id.
         super::remove_folder(&staged.staging)?;
         std::fs::create_dir(&staged.staging).map_err(|e| Error::io(&staged.staging, e))?;
+        Ok(staged)
+    }
+
+    /// Stages the result set of the command `kind` (`rtr eval`) in `target`, whose earlier
+    /// result set, if rtr recorded one, must be of the same kind ([`check_result_folder`]).
+    pub fn result_set(target: &Path, kind: &'static str) -> Result<Self> {
+        let mut staged = Self::new(target)?;
+        staged.kind = Some(kind);
         Ok(staged)
     }
 
@@ -68,15 +79,18 @@ impl StagedFolder {
     pub fn commit(mut self) -> Result<()> {
         let staged = relative_files(&self.staging)?;
         if self.target.exists() {
+            if let Some(kind) = self.kind {
+                refuse_other_kind(&self.target, kind)?;
+            }
             check_mergeable(&self.staging, &self.target)?;
             let earlier = own_files(&self.target)?;
             refuse_foreign(&self.target, &staged, &earlier)?;
             merge(&self.staging, &self.target)?;
             super::remove_folder(&self.staging)?;
-            record_own_files(&self.target, &staged)?;
+            record_own_files(&self.target, self.kind, &staged)?;
             remove_stale(&self.target, &earlier, &staged)?;
         } else {
-            record_own_files(&self.staging, &staged)?;
+            record_own_files(&self.staging, self.kind, &staged)?;
             super::rename(&self.staging, &self.target)?;
         }
         self.committed = true;
@@ -85,8 +99,64 @@ impl StagedFolder {
 }
 
 /// The file in a folder written through [`StagedFolder`] that lists the files of rtr's last
-/// result set there, one path per line relative to the folder.
+/// result set there, one path per line relative to the folder, after a `# kind` line naming
+/// the command that wrote it (when it is a command's result set).
 pub const OWN_FILES: &str = ".rtr-output";
+
+/// Checks, before any work, that the command `kind` (`rtr eval`) may write its result set
+/// into `target`: that rtr's earlier set there, if any, is of the same kind, and that none of
+/// `names` (the set's top-level files and folders) is already there but not rtr's. So a
+/// command refused at its end (see [`StagedFolder::commit`]) is refused at its start too, and
+/// no hours of work are lost to it.
+pub fn check_result_folder(target: &Path, kind: &str, names: &[&str]) -> Result<()> {
+    if !target.is_dir() {
+        return Ok(());
+    }
+    refuse_other_kind(target, kind)?;
+    let earlier = own_files(target)?;
+    let foreign: Vec<PathBuf> = names
+        .iter()
+        .map(PathBuf::from)
+        .filter(|name| {
+            let path = target.join(name);
+            if path.is_dir() {
+                // A folder of rtr's is one whose every file rtr wrote.
+                relative_files(&path)
+                    .is_ok_and(|files| files.iter().any(|f| !earlier.contains(&name.join(f))))
+            } else {
+                path.exists() && !earlier.contains(name)
+            }
+        })
+        .collect();
+    refuse_foreign(target, &foreign, &[])
+}
+
+/// Refuses when rtr's last result set in `target` came from another command than `kind`:
+/// `rtr downstream` into an `rtr eval` folder would replace one study with another.
+fn refuse_other_kind(target: &Path, kind: &str) -> Result<()> {
+    match recorded_kind(target)? {
+        Some(earlier) if earlier != kind => Err(Error::InvalidArgument(format!(
+            "{} holds the results of `{earlier}`; `{kind}` would replace them. Choose another \
+             folder, or move them away",
+            target.display()
+        ))),
+        _ => Ok(()),
+    }
+}
+
+/// The command whose result set `dir` holds, if rtr recorded it.
+fn recorded_kind(dir: &Path) -> Result<Option<String>> {
+    let record = dir.join(OWN_FILES);
+    if !record.is_file() {
+        return Ok(None);
+    }
+    let text = super::read_text(&record, super::Format::SceneList)?;
+    Ok(text
+        .lines()
+        .next()
+        .and_then(|l| l.strip_prefix("# "))
+        .map(str::to_string))
+}
 
 /// Every file under `dir`, as paths relative to it, sorted.
 fn relative_files(dir: &Path) -> Result<Vec<PathBuf>> {
@@ -115,14 +185,15 @@ fn own_files(dir: &Path) -> Result<Vec<PathBuf>> {
     let text = super::read_text(&record, super::Format::SceneList)?;
     Ok(text
         .lines()
-        .filter(|l| !l.is_empty())
+        .filter(|l| !l.is_empty() && !l.starts_with("# "))
         .map(PathBuf::from)
         .collect())
 }
 
-fn record_own_files(dir: &Path, files: &[PathBuf]) -> Result<()> {
+fn record_own_files(dir: &Path, kind: Option<&str>, files: &[PathBuf]) -> Result<()> {
+    let header = kind.map(|k| format!("# {k}\n")).unwrap_or_default();
     let text: String = files.iter().map(|f| format!("{}\n", f.display())).collect();
-    super::atomic_write(&dir.join(OWN_FILES), text.as_bytes())
+    super::atomic_write(&dir.join(OWN_FILES), (header + &text).as_bytes())
 }
 
 /// Refuses when a staged file would replace a file of `target` that is not in rtr's `earlier`

@@ -46,7 +46,21 @@ pub fn parse_points(text: &str) -> Result<Vec<(f64, f64)>> {
             }
             Ok((l, a))
         })
-        .collect()
+        .collect::<Result<Vec<_>>>()
+        .and_then(refuse_repeated_points)
+}
+
+/// Two spellings of one point (`1:0.5`, `1.0:0.50`) would train one folder twice.
+fn refuse_repeated_points(points: Vec<(f64, f64)>) -> Result<Vec<(f64, f64)>> {
+    for (k, point) in points.iter().enumerate() {
+        if points[..k].contains(point) {
+            return Err(Error::InvalidArgument(format!(
+                "sweep point {}:{} is given twice; expected each LAMBDA:ALPHA once",
+                point.0, point.1
+            )));
+        }
+    }
+    Ok(points)
 }
 
 /// The run folder of one point.

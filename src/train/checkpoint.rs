@@ -80,6 +80,11 @@ fn record_error(path: &Path, e: impl std::fmt::Display) -> Error {
 /// network it is loaded into is not, so say that (with the first mismatch, not all of them).
 /// Reads burn's "Apply errors: [\"...\", \"...\"]" list; any other message keeps the
 /// generic wording.
+/// burn's `Shape { dims: [51, 64] }` as `[51, 64]`.
+fn plain_shapes(text: &str) -> String {
+    text.replace("Shape { dims: ", "").replace("] }", "]")
+}
+
 fn load_error(path: &Path, message: &str) -> Error {
     let mismatches: Vec<&str> = message
         .split("\", \"")
@@ -94,10 +99,12 @@ fn load_error(path: &Path, message: &str) -> Error {
                  parameters differ, first {}): load it with the [model] section of the run \
                  that wrote it (its config.toml)",
                 mismatches.len(),
-                first
-                    .rsplit('"')
-                    .find(|part| part.contains("shape mismatch"))
-                    .unwrap_or(first)
+                plain_shapes(
+                    first
+                        .rsplit('"')
+                        .find(|part| part.contains("shape mismatch"))
+                        .unwrap_or(first)
+                )
             ),
         ),
         None => record_error(path, message),
@@ -171,9 +178,34 @@ fn check_finite<M: Module>(module: &M, path: &Path) -> Result<()> {
     }
 }
 
+/// Refuses, before reading it, a parameter file far larger than `module`'s parameters (f32,
+/// four bytes each, plus names and shapes): not this model's file, and possibly larger than
+/// memory.
+fn refuse_oversized<M: Module>(module: &M, path: &Path) -> Result<()> {
+    let expected = 4 * module.num_params() as u64;
+    let limit = 2 * expected + 16 * 1024 * 1024;
+    let size = crate::io::open_regular(path)?
+        .metadata()
+        .map_err(|e| Error::io(path, e))?
+        .len();
+    if size > limit {
+        return Err(Error::invalid(
+            path.display().to_string(),
+            "size",
+            format!(
+                "{size} bytes, where this model's {} parameters take about {expected}; \
+                 expected the parameter file of a model of this config",
+                module.num_params()
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// Loads a module's parameters from a burnpack file into `module` (which fixes the shapes);
 /// every parameter must be finite.
 pub fn load_module<M: Module>(module: M, path: &Path) -> Result<M> {
+    refuse_oversized(&module, path)?;
     let record = ModuleRecord::from_bytes(read_bytes(path)?).map_err(|e| record_error(path, e))?;
     let module = module
         .try_load_record(record)

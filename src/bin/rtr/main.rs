@@ -102,7 +102,8 @@ fn exit_with(e: clap::Error) -> ! {
     if !matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) {
         e.exit();
     }
-    match rtr::out!("{}", e.render()) {
+    let printed = rtr::out!("{}", e.render()).and_then(|()| rtr::io::console::check_stdout());
+    match printed {
         Ok(()) => std::process::exit(0),
         Err(error) => {
             rtr::errln!("error: {error}");
@@ -113,7 +114,7 @@ fn exit_with(e: clap::Error) -> ! {
 
 fn main() -> ExitCode {
     rtr::allocator::tune_for_tensors();
-    match run(parse_cli()) {
+    match run(parse_cli()).and_then(|()| rtr::io::console::check_stdout()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             rtr::errln!("error: {e}");

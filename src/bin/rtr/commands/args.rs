@@ -33,6 +33,9 @@ impl DataArgs {
     }
 
     pub fn load(&self) -> Result<A9Dataset> {
+        if let Some(dir) = &self.data {
+            rtr::io::check_input_folder(dir, "--data", "the AUTOMATUM A9 folder")?;
+        }
         A9Dataset::load(&self.dir())
     }
 }

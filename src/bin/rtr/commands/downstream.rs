@@ -8,11 +8,14 @@ use rtr::backend::Backend;
 use rtr::data::SceneConfig;
 use rtr::eval::study::load_entries;
 use rtr::eval::{EvalConfig, EvalScenes};
-use rtr::io::{Inputs, claim_output_folder};
+use rtr::io::{Inputs, check_result_folder, claim_output_folder};
 use rtr::studies::downstream::{DownstreamConfig, downstream, downstream_table};
 use rtr::{Error, Result};
 
 use super::args::{DataArgs, count};
+
+/// The kind of result set `rtr downstream --out` writes.
+const DOWNSTREAM_RESULTS: &str = "rtr downstream";
 
 #[derive(Args)]
 pub struct DownstreamArgs {
@@ -54,7 +57,11 @@ pub fn run(args: DownstreamArgs) -> Result<()> {
         .with_all("--checkpoint", &args.checkpoints)
         .with("--data", args.data.dir());
     let _claim = match &args.out {
-        Some(out) => Some(claim_output_folder(out, "--out", &inputs)?),
+        Some(out) => {
+            let claim = claim_output_folder(out, "--out", &inputs)?;
+            check_result_folder(out, DOWNSTREAM_RESULTS, &["results.json", "table.md"])?;
+            Some(claim)
+        }
         None => None,
     };
     let entries = load_entries(&args.checkpoints, args.idm, &args.backend.device(false)?)?;
@@ -96,7 +103,7 @@ pub fn run(args: DownstreamArgs) -> Result<()> {
         });
         let text = serde_json::to_string_pretty(&json)
             .map_err(|e| Error::InvalidArgument(format!("results.json: {e}")))?;
-        let staged = rtr::io::StagedFolder::new(out)?;
+        let staged = rtr::io::StagedFolder::result_set(out, DOWNSTREAM_RESULTS)?;
         rtr::io::atomic_write(&staged.path().join("results.json"), text.as_bytes())?;
         rtr::io::atomic_write(&staged.path().join("table.md"), table.as_bytes())?;
         staged.commit()?;

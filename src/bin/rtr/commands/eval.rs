@@ -8,7 +8,7 @@ use rtr::backend::Backend;
 use rtr::data::{SceneConfig, bend_scenes, commonroad};
 use rtr::eval::study::{Entry, evaluate_entries, load_entries, write_study};
 use rtr::eval::{EvalConfig, EvalScenes, EvalSet, load_sets, markdown_table};
-use rtr::io::{Inputs, OutputClaim, StagedFolder, claim_output_folder};
+use rtr::io::{Inputs, OutputClaim, StagedFolder, check_result_folder, claim_output_folder};
 use rtr::{Error, Result};
 
 use super::args::{DataArgs, count};
@@ -69,16 +69,29 @@ fn claim_output(args: &EvalArgs) -> Result<Option<OutputClaim>> {
     for path in &args.checkpoints {
         rtr::io::check_input_path(path, "--checkpoint")?;
     }
+    if let Some(dir) = &args.scenarios {
+        rtr::io::check_input_folder(dir, "--scenarios", SCENARIO_FOLDER)?;
+    }
     let inputs = Inputs::new()
         .with_all("--checkpoint", &args.checkpoints)
         .with_all("--scenarios", &args.scenarios)
         .with_all("--commonroad", &args.commonroad)
         .with("--data", args.data.dir());
-    args.out
-        .as_ref()
-        .map(|out| claim_output_folder(out, "--out", &inputs))
-        .transpose()
+    let Some(out) = &args.out else {
+        return Ok(None);
+    };
+    let claim = claim_output_folder(out, "--out", &inputs)?;
+    check_result_folder(out, EVAL_RESULTS, &EVAL_FILES)?;
+    Ok(Some(claim))
 }
+
+/// What `--scenarios` names.
+pub const SCENARIO_FOLDER: &str =
+    "the folder `rtr scenarios generate --out` wrote (holding train/, eval/, ood/)";
+
+/// The kind of result set `rtr eval --out` writes, and its top-level files and folders.
+const EVAL_RESULTS: &str = "rtr eval";
+const EVAL_FILES: [&str; 4] = ["results.json", "table.md", "figures", "commonroad.json"];
 
 pub fn run(args: EvalArgs) -> Result<()> {
     if args.checkpoints.is_empty() && !args.idm {
@@ -169,7 +182,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
     let mut wrote = None;
     if let Some(out) = &args.out {
         // Tables and figures land together or not at all (a figure that fails leaves no table).
-        let staged = StagedFolder::new(out)?;
+        let staged = StagedFolder::result_set(out, EVAL_RESULTS)?;
         let mut written = write_study(staged.path(), &entries, &results, &scenes, &device)?;
         if !clip_summaries.is_empty() {
             let path = staged.path().join("commonroad.json");

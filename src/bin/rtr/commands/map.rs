@@ -60,8 +60,11 @@ pub fn run(command: MapCommand) -> Result<()> {
             };
             let (targets, _claims) = image_targets(&out, &opts, &source.inputs())?;
             let map = source.load()?;
-            for path in targets {
-                render_map(&map, &path, &opts)?;
+            // Every file first: a full stdout must not cut the set short.
+            for path in &targets {
+                render_map(&map, path, &opts)?;
+            }
+            for path in &targets {
                 rtr::outln!("wrote {}", path.display())?;
             }
             Ok(())

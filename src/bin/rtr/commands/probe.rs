@@ -68,6 +68,12 @@ pub fn run(command: ProbeCommand) -> Result<()> {
             ProbeTask::parse(t.trim()).map_err(|e| Error::InvalidArgument(format!("--tasks: {e}")))
         })
         .collect::<Result<Vec<_>>>()?;
+    if let Some(k) = (1..tasks.len()).find(|&k| tasks[..k].contains(&tasks[k])) {
+        return Err(Error::InvalidArgument(format!(
+            "--tasks: `{}` is given twice; expected each task once",
+            args.tasks[k].trim()
+        )));
+    }
     let base = base_config(&args)?;
     let inputs = rtr::io::Inputs::new()
         .with_all("--config", &args.config)

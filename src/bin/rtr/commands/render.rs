@@ -98,8 +98,11 @@ pub fn run(args: RenderArgs) -> Result<()> {
         Source::Scenario(scenario) => return render_scenario(&scenario, &opts, &targets),
         Source::Recorded { scene, .. } => scene,
     };
+    // Every file first: a full stdout must not cut the set short.
     for path in &targets {
         render_scene(&scene, path, &opts)?;
+    }
+    for path in &targets {
         rtr::outln!("wrote {}", path.display())?;
     }
     rtr::outln!(
@@ -197,6 +200,8 @@ fn render_scenario(
     };
     for target in targets {
         render_scene(&scene, target, &opts)?;
+    }
+    for target in targets {
         rtr::outln!("wrote {}", target.display())?;
     }
     rtr::outln!(

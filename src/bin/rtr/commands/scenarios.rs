@@ -44,7 +44,7 @@ pub enum ScenariosCommand {
 pub fn run(command: ScenariosCommand) -> Result<()> {
     match command {
         ScenariosCommand::List { families } => {
-            let families = load_families(&families.unwrap_or_else(builtin_families))?;
+            let families = load_families(&families_folder(families)?)?;
             for f in &families {
                 rtr::outln!(
                     "{:<28} {:<5} {}",
@@ -76,7 +76,7 @@ pub fn run(command: ScenariosCommand) -> Result<()> {
                 .with("--data", data.dir());
             let _claim = claim_output_folder(&out, "--out", &inputs)?;
             refuse_earlier_sets(&out)?;
-            let families = load_families(&families.unwrap_or_else(builtin_families))?;
+            let families = load_families(&families_folder(families)?)?;
             let dataset = data.load()?;
             let stats =
                 rtr::data::TrafficStatistics::from_recording(&dataset.recording, &dataset.map, 1.0);
@@ -133,4 +133,15 @@ fn refuse_earlier_sets(out: &std::path::Path) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// The families folder: `--families`, checked to be a folder, or the built-in one.
+fn families_folder(families: Option<PathBuf>) -> Result<PathBuf> {
+    match families {
+        Some(dir) => {
+            rtr::io::check_input_folder(&dir, "--families", "a folder of family TOML files")?;
+            Ok(dir)
+        }
+        None => Ok(builtin_families()),
+    }
 }

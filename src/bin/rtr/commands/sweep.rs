@@ -6,10 +6,13 @@ use clap::Args;
 
 use rtr::Result;
 use rtr::eval::{EvalConfig, EvalSet, load_sets};
-use rtr::io::{Inputs, claim_output_folder};
+use rtr::io::{Inputs, check_result_folder, claim_output_folder};
 use rtr::studies::sweep::{check_points, evaluate_points, parse_points, train_points, write_sweep};
 
 use super::args::{DataArgs, count};
+
+/// The kind of result set `rtr sweep --out` writes (beside its points' training folders).
+const SWEEP_RESULTS: &str = "rtr sweep";
 
 #[derive(Args)]
 pub struct SweepArgs {
@@ -50,7 +53,11 @@ pub fn run(args: SweepArgs) -> Result<()> {
         .with("--config", &args.config)
         .with_all("--scenarios", &args.scenarios)
         .with("--data", args.data.dir());
+    if let Some(dir) = &args.scenarios {
+        rtr::io::check_input_folder(dir, "--scenarios", super::eval::SCENARIO_FOLDER)?;
+    }
     let _claim = claim_output_folder(&args.out, "--out", &inputs)?;
+    check_result_folder(&args.out, SWEEP_RESULTS, &["results.json", "table.md"])?;
     let sets = args
         .set
         .iter()
@@ -87,7 +94,9 @@ pub fn run(args: SweepArgs) -> Result<()> {
     let progress = bar("eval");
     let results = evaluate_points(&points, &dirs, &scenes, &device, &config, &progress)?;
     progress.finish_and_clear();
-    write_sweep(&args.out, &results, &scenes)?;
+    let staged = rtr::io::StagedFolder::result_set(&args.out, SWEEP_RESULTS)?;
+    write_sweep(staged.path(), &results, &scenes)?;
+    staged.commit()?;
     rtr::out!("{}", rtr::eval::markdown_table(&results, &sets))?;
     rtr::outln!(
         "wrote {} and {}",

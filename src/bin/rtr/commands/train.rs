@@ -62,11 +62,12 @@ pub fn run(args: TrainArgs) -> Result<()> {
                 }
             )));
         }
+        rtr::io::check_input_folder(dir, "--scenarios", super::eval::SCENARIO_FOLDER)?;
         if !dir.join("train").is_dir() {
             return Err(Error::InvalidArgument(format!(
-                "--scenarios {}: no train/ folder in it; expected the folder `rtr scenarios \
-                 generate --out` wrote (holding train/, eval/, ood/)",
-                dir.display()
+                "--scenarios {}: no train/ folder in it; expected {}",
+                dir.display(),
+                super::eval::SCENARIO_FOLDER
             )));
         }
         config.data.longtail_dir = Some(dir.clone());
