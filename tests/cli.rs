@@ -985,25 +985,41 @@ fn model_average_writes_a_loadable_policy_and_refuses_mixed_runs() {
             String::from_utf8_lossy(&output.stderr).to_string(),
         )
     };
+    // One policy twice would pass for an average of two.
     let (ok, err) = average(&[il, il], &out);
-    assert!(ok, "{err}");
-    // The mean of one policy twice is that policy, bit for bit (sums in f64).
+    assert!(
+        !ok && err.contains("same weights") && !out.exists(),
+        "{err}"
+    );
+    // A second policy of the same config and method (freshly initialised weights).
     let device = rtr::backend::Backend::NdArray
         .device(false)
         .expect("CPU device");
+    let config = std::fs::read_to_string(format!("{il}/config.toml")).expect("config");
+    let second = dir.path().join("second");
+    std::fs::create_dir(&second).expect("folder");
+    std::fs::write(second.join("config.toml"), &config).expect("config written");
+    let model = rtr::eval::trained::TrainedPolicy::load(std::path::Path::new(il), &device)
+        .expect("loads")
+        .config
+        .model;
+    let fresh = rtr::model::PolicyNetwork::new(&model, &device);
+    std::fs::write(second.join("policy.bpk"), policy_bytes(fresh)).expect("policy written");
+    let second_arg = second.to_str().expect("utf-8 path").to_string();
+    let (ok, err) = average(&[il, &second_arg], &out);
+    assert!(ok, "{err}");
     let mean = rtr::eval::trained::TrainedPolicy::load(&out, &device).expect("average loads");
     assert_eq!(mean.method, "IL");
     let read = |p: &std::path::Path| std::fs::read(p).expect("policy file");
-    assert_eq!(
-        read(&out.join("policy.bpk")),
-        read(&std::path::Path::new(il).join("policy.bpk"))
-    );
+    let averaged = read(&out.join("policy.bpk"));
+    assert_ne!(averaged, read(&std::path::Path::new(il).join("policy.bpk")));
+    assert_ne!(averaged, read(&second.join("policy.bpk")));
     let sources: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("averaged.json")).expect("averaged.json"))
             .expect("JSON");
     assert_eq!(sources["sources"].as_array().map(Vec::len), Some(2));
 
-    let (ok, err) = average(&[il, il], &out);
+    let (ok, err) = average(&[il, &second_arg], &out);
     assert!(!ok && err.contains("already holds"), "{err}");
     let other = dir.path().join("mixed");
     let (ok, err) = average(&[il, "models/rtr_dropout80"], &other);
@@ -1015,8 +1031,7 @@ fn model_average_writes_a_loadable_policy_and_refuses_mixed_runs() {
     // finds it.
     let run = dir.path().join("run");
     std::fs::create_dir(&run).expect("run folder");
-    std::fs::copy(format!("{il}/policy.bpk"), run.join("policy.bpk")).expect("policy");
-    let config = std::fs::read_to_string(format!("{il}/config.toml")).expect("config");
+    std::fs::copy(second.join("policy.bpk"), run.join("policy.bpk")).expect("policy");
     std::fs::write(
         run.join("config.toml"),
         format!("dynamics = \"dynamics.toml\"\n{config}"),
@@ -1029,8 +1044,18 @@ fn model_average_writes_a_loadable_policy_and_refuses_mixed_runs() {
     .expect("dynamics written");
     let run = run.to_str().expect("utf-8 path");
     let moved = dir.path().join("elsewhere").join("mean");
-    let (ok, err) = average(&[run, run], &moved);
+    let (ok, err) = average(&[run, il], &moved);
     assert!(ok, "{err}");
     let loaded = rtr::eval::trained::TrainedPolicy::load(&moved, &device).expect("loads");
     assert!(loaded.config.dynamics.is_some());
+}
+
+/// A policy network's parameters as the bytes of a `policy.bpk`.
+fn policy_bytes(network: rtr::model::PolicyNetwork) -> Vec<u8> {
+    use burn::module::Module;
+    network
+        .into_record()
+        .into_bytes()
+        .expect("parameters serialise")
+        .to_vec()
 }
