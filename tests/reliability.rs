@@ -260,6 +260,13 @@ fn a_result_folder_is_checked_before_the_work() {
     std::fs::write(evaluated.join(".rtr-output"), "# rtr eval\nresults.json\n").expect("write");
     let evaluated = evaluated.to_str().expect("UTF-8");
     assert_refused(
+        &["scenarios", "generate", "--out", evaluated],
+        &[
+            "holds the results of `rtr eval`",
+            "`rtr scenarios generate` would replace them",
+        ],
+    );
+    assert_refused(
         &["downstream", "--idm", "--out", evaluated],
         &[
             "holds the results of `rtr eval`",
@@ -327,6 +334,25 @@ fn an_input_named_twice_is_refused() {
         ],
         &["USA_US101-5_1_T-1.xml.gz", "is given twice"],
     );
+}
+
+/// A path that is not UTF-8 (legal on Unix) is written, not a panic.
+#[test]
+fn a_path_that_is_not_utf8_is_no_panic() {
+    use std::os::unix::ffi::OsStrExt;
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = dir.path().join(std::ffi::OsStr::from_bytes(b"x\xff.svg"));
+    let child = rtr()
+        .args(["map", "render", "--procedural", "straight", "--out"])
+        .arg(&out)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("the rtr binary runs");
+    let (status, stderr) = finish(child, REFUSAL_LIMIT, "map render --out x\\xff.svg");
+    assert_no_panic(&stderr, "map render");
+    assert!(status.success(), "{stderr}");
+    assert!(out.is_file());
 }
 
 /// A folder flag given a file is named with the folder it expects.

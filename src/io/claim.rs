@@ -146,7 +146,10 @@ fn lock(target: &Path, flag: &str) -> Result<OutputClaim> {
         let holder = format!(
             "pid {}: {}",
             std::process::id(),
-            std::env::args().collect::<Vec<_>>().join(" ")
+            std::env::args_os()
+                .map(|a| a.to_string_lossy().into_owned())
+                .collect::<Vec<_>>()
+                .join(" ")
         );
         // The holder is only for messages: a failure to record it does not matter.
         let _ = file

@@ -18,13 +18,15 @@ pub struct StagedFolder {
     created: Vec<PathBuf>,
     committed: bool,
     /// The command whose results these are (`rtr eval`), recorded with them.
-    kind: Option<&'static str>,
+    kind: &'static str,
 }
 
 impl StagedFolder {
-    /// Stages a new or existing folder `target`. Creates its missing parents (removed again
-    /// if nothing is committed) and the staging folder beside it.
-    pub fn new(target: &Path) -> Result<Self> {
+    /// Stages the result set of the command `kind` (`rtr eval`) in the new or existing folder
+    /// `target`, whose earlier result set, if rtr recorded one, must be of the same kind
+    /// ([`check_result_folder`]). Creates its missing parents (removed again if nothing is
+    /// committed) and the staging folder beside it.
+    pub fn new(target: &Path, kind: &'static str) -> Result<Self> {
         if target.is_file() {
             return Err(Error::InvalidArgument(format!(
                 "{} is a file; expected a folder",
@@ -42,19 +44,11 @@ impl StagedFolder {
             staging: super::output::temp_name(&parent, "staging", None),
             created,
             committed: false,
-            kind: None,
+            kind,
         };
         // A leftover of a killed run with the same process id.
         super::remove_folder(&staged.staging)?;
         std::fs::create_dir(&staged.staging).map_err(|e| Error::io(&staged.staging, e))?;
-        Ok(staged)
-    }
-
-    /// Stages the result set of the command `kind` (`rtr eval`) in `target`, whose earlier
-    /// result set, if rtr recorded one, must be of the same kind ([`check_result_folder`]).
-    pub fn result_set(target: &Path, kind: &'static str) -> Result<Self> {
-        let mut staged = Self::new(target)?;
-        staged.kind = Some(kind);
         Ok(staged)
     }
 
@@ -79,18 +73,16 @@ impl StagedFolder {
     pub fn commit(mut self) -> Result<()> {
         let staged = relative_files(&self.staging)?;
         if self.target.exists() {
-            if let Some(kind) = self.kind {
-                refuse_other_kind(&self.target, kind)?;
-            }
+            refuse_other_kind(&self.target, self.kind)?;
             check_mergeable(&self.staging, &self.target)?;
             let earlier = own_files(&self.target)?;
             refuse_foreign(&self.target, &staged, &earlier)?;
             merge(&self.staging, &self.target)?;
             super::remove_folder(&self.staging)?;
-            record_own_files(&self.target, self.kind, &staged)?;
+            record_own_files(&self.target, Some(self.kind), &staged)?;
             remove_stale(&self.target, &earlier, &staged)?;
         } else {
-            record_own_files(&self.staging, self.kind, &staged)?;
+            record_own_files(&self.staging, Some(self.kind), &staged)?;
             super::rename(&self.staging, &self.target)?;
         }
         self.committed = true;
@@ -134,28 +126,41 @@ pub fn check_result_folder(target: &Path, kind: &str, names: &[&str]) -> Result<
 /// Refuses when rtr's last result set in `target` came from another command than `kind`:
 /// `rtr downstream` into an `rtr eval` folder would replace one study with another.
 fn refuse_other_kind(target: &Path, kind: &str) -> Result<()> {
-    match recorded_kind(target)? {
-        Some(earlier) if earlier != kind => Err(Error::InvalidArgument(format!(
-            "{} holds the results of `{earlier}`; `{kind}` would replace them. Choose another \
-             folder, or move them away",
-            target.display()
-        ))),
-        _ => Ok(()),
-    }
+    let earlier = match recorded_kind(target)? {
+        Kind::None => return Ok(()),
+        Kind::Command(earlier) if earlier == kind => return Ok(()),
+        Kind::Command(earlier) => format!("the results of `{earlier}`"),
+        Kind::Unnamed => "results of an earlier rtr that did not record its command".into(),
+    };
+    Err(Error::InvalidArgument(format!(
+        "{} holds {earlier}; `{kind}` would replace them. Choose another folder, or move them \
+         away",
+        target.display()
+    )))
 }
 
-/// The command whose result set `dir` holds, if rtr recorded it.
-fn recorded_kind(dir: &Path) -> Result<Option<String>> {
+/// What [`recorded_kind`] found.
+enum Kind {
+    /// No record: no result set of rtr's.
+    None,
+    Command(String),
+    /// A record without a command line (written before rtr recorded it).
+    Unnamed,
+}
+
+/// The command whose result set `dir` holds.
+fn recorded_kind(dir: &Path) -> Result<Kind> {
     let record = dir.join(OWN_FILES);
     if !record.is_file() {
-        return Ok(None);
+        return Ok(Kind::None);
     }
     let text = super::read_text(&record, super::Format::SceneList)?;
-    Ok(text
-        .lines()
-        .next()
-        .and_then(|l| l.strip_prefix("# "))
-        .map(str::to_string))
+    Ok(
+        match text.lines().next().and_then(|l| l.strip_prefix("# ")) {
+            Some(kind) => Kind::Command(kind.to_string()),
+            None => Kind::Unnamed,
+        },
+    )
 }
 
 /// Every file under `dir`, as paths relative to it, sorted.
@@ -183,10 +188,16 @@ fn own_files(dir: &Path) -> Result<Vec<PathBuf>> {
         return Ok(Vec::new());
     }
     let text = super::read_text(&record, super::Format::SceneList)?;
+    // Only paths inside the folder: a record edited to name `../x` or `/x` must not make rtr
+    // replace or remove anything outside it.
     Ok(text
         .lines()
         .filter(|l| !l.is_empty() && !l.starts_with("# "))
         .map(PathBuf::from)
+        .filter(|p| {
+            p.components()
+                .all(|c| matches!(c, std::path::Component::Normal(_)))
+        })
         .collect())
 }
 
@@ -322,7 +333,7 @@ mod tests {
         let root = tempfile::tempdir().expect("temp dir");
         let target = root.path().join("a/b/out");
         let result: Result<()> = (|| {
-            let staged = StagedFolder::new(&target)?;
+            let staged = StagedFolder::new(&target, "rtr test")?;
             std::fs::write(staged.path().join("results.json"), b"{}")
                 .map_err(|e| Error::io(staged.path(), e))?;
             Err(Error::InvalidArgument("a figure failed".into()))
@@ -335,7 +346,7 @@ mod tests {
     fn commit_creates_or_merges_the_folder() {
         let root = tempfile::tempdir().expect("temp dir");
         let target = root.path().join("out");
-        let staged = StagedFolder::new(&target).expect("stage");
+        let staged = StagedFolder::new(&target, "rtr test").expect("stage");
         std::fs::create_dir(staged.path().join("figures")).expect("mkdir");
         std::fs::write(staged.path().join("figures/a.svg"), b"a").expect("write");
         assert_eq!(
@@ -345,7 +356,7 @@ mod tests {
         staged.commit().expect("commit");
         // Into an existing folder: rtr's own files are replaced, the user's stay.
         std::fs::write(target.join("keep.txt"), b"k").expect("write");
-        let staged = StagedFolder::new(&target).expect("stage");
+        let staged = StagedFolder::new(&target, "rtr test").expect("stage");
         std::fs::create_dir(staged.path().join("figures")).expect("mkdir");
         std::fs::write(staged.path().join("figures/a.svg"), b"new").expect("write");
         std::fs::write(staged.path().join("table.md"), b"t").expect("write");
@@ -365,12 +376,12 @@ mod tests {
     fn an_earlier_result_set_leaves_nothing_beside_the_new_one() {
         let root = tempfile::tempdir().expect("temp dir");
         let target = root.path().join("out");
-        let staged = StagedFolder::new(&target).expect("stage");
+        let staged = StagedFolder::new(&target, "rtr test").expect("stage");
         std::fs::create_dir_all(staged.path().join("figures/old")).expect("mkdir");
         std::fs::write(staged.path().join("figures/old/a.svg"), b"a").expect("write");
         std::fs::write(staged.path().join("results.json"), b"1").expect("write");
         staged.commit().expect("commit");
-        let staged = StagedFolder::new(&target).expect("stage");
+        let staged = StagedFolder::new(&target, "rtr test").expect("stage");
         std::fs::write(staged.path().join("results.json"), b"2").expect("write");
         staged.commit().expect("commit");
         assert_eq!(names(&target), [OWN_FILES, "results.json"]);
@@ -389,7 +400,7 @@ mod tests {
         std::fs::create_dir(&dead).expect("mkdir");
         std::fs::write(dead.join("results.json"), b"half").expect("write");
         std::fs::write(&live, b"busy").expect("write");
-        let staged = StagedFolder::new(&root.path().join("out")).expect("stage");
+        let staged = StagedFolder::new(&root.path().join("out"), "rtr test").expect("stage");
         std::fs::write(staged.path().join("a.json"), b"{}").expect("write");
         staged.commit().expect("commit");
         assert!(!dead.exists(), "the killed writer's staging folder is gone");
@@ -402,7 +413,7 @@ mod tests {
         let target = root.path().join("out");
         std::fs::create_dir(&target).expect("mkdir");
         std::fs::write(target.join("table.md"), b"mine").expect("write");
-        let staged = StagedFolder::new(&target).expect("stage");
+        let staged = StagedFolder::new(&target, "rtr test").expect("stage");
         std::fs::write(staged.path().join("table.md"), b"t").expect("write");
         std::fs::write(staged.path().join("results.json"), b"{}").expect("write");
         let err = staged.commit().expect_err("the user's table.md");
@@ -416,12 +427,37 @@ mod tests {
     }
 
     #[test]
+    fn a_record_reaches_nothing_outside_its_folder_and_another_commands_set_is_kept() {
+        let root = tempfile::tempdir().expect("temp dir");
+        let target = root.path().join("out");
+        std::fs::create_dir(&target).expect("mkdir");
+        let outside = root.path().join("victim.txt");
+        std::fs::write(&outside, b"keep").expect("write");
+        let record = format!("# rtr test\n../victim.txt\n{}\n", outside.display());
+        std::fs::write(target.join(OWN_FILES), record).expect("write");
+        let staged = StagedFolder::new(&target, "rtr test").expect("stage");
+        std::fs::write(staged.path().join("a.json"), b"{}").expect("write");
+        staged.commit().expect("commit");
+        assert_eq!(std::fs::read(&outside).expect("read"), b"keep");
+        // Another command's results there are refused, at the start and at the end.
+        let err = check_result_folder(&target, "rtr other", &["a.json"]).expect_err("kind");
+        assert!(
+            err.to_string().contains("holds the results of `rtr test`"),
+            "{err}"
+        );
+        let staged = StagedFolder::new(&target, "rtr other").expect("stage");
+        std::fs::write(staged.path().join("b.json"), b"{}").expect("write");
+        assert!(staged.commit().is_err());
+        assert_eq!(names(&target), [OWN_FILES, "a.json"]);
+    }
+
+    #[test]
     fn a_conflict_is_refused_before_anything_moves() {
         let root = tempfile::tempdir().expect("temp dir");
         let target = root.path().join("out");
         std::fs::create_dir(&target).expect("mkdir");
         std::fs::write(target.join("figures"), b"a file").expect("write");
-        let staged = StagedFolder::new(&target).expect("stage");
+        let staged = StagedFolder::new(&target, "rtr test").expect("stage");
         std::fs::write(staged.path().join("results.json"), b"{}").expect("write");
         std::fs::create_dir(staged.path().join("figures")).expect("mkdir");
         let err = staged.commit().expect_err("figures is a file");

@@ -103,7 +103,7 @@ pub fn run(args: DownstreamArgs) -> Result<()> {
         });
         let text = serde_json::to_string_pretty(&json)
             .map_err(|e| Error::InvalidArgument(format!("results.json: {e}")))?;
-        let staged = rtr::io::StagedFolder::result_set(out, DOWNSTREAM_RESULTS)?;
+        let staged = rtr::io::StagedFolder::new(out, DOWNSTREAM_RESULTS)?;
         rtr::io::atomic_write(&staged.path().join("results.json"), text.as_bytes())?;
         rtr::io::atomic_write(&staged.path().join("table.md"), table.as_bytes())?;
         staged.commit()?;

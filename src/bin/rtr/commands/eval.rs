@@ -182,7 +182,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
     let mut wrote = None;
     if let Some(out) = &args.out {
         // Tables and figures land together or not at all (a figure that fails leaves no table).
-        let staged = StagedFolder::result_set(out, EVAL_RESULTS)?;
+        let staged = StagedFolder::new(out, EVAL_RESULTS)?;
         let mut written = write_study(staged.path(), &entries, &results, &scenes, &device)?;
         if !clip_summaries.is_empty() {
             let path = staged.path().join("commonroad.json");

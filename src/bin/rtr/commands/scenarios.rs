@@ -13,6 +13,9 @@ use super::args::{DataArgs, count};
 /// Most scenarios one flag may ask for: 100 times the paper's sets, about an hour of drawing.
 const MAX_SCENARIOS: u64 = 50_000;
 
+/// The kind of result set `rtr scenarios generate --out` writes.
+const SCENARIO_SET: &str = "rtr scenarios generate";
+
 #[derive(Subcommand)]
 pub enum ScenariosCommand {
     /// Draw the default train / eval / OOD sets (167 / 166 / 84) from the family files and
@@ -75,6 +78,7 @@ pub fn run(command: ScenariosCommand) -> Result<()> {
                 .with_all("--families", &families)
                 .with("--data", data.dir());
             let _claim = claim_output_folder(&out, "--out", &inputs)?;
+            rtr::io::check_result_folder(&out, SCENARIO_SET, &["train", "eval", "ood"])?;
             refuse_earlier_sets(&out)?;
             let families = load_families(&families_folder(families)?)?;
             let dataset = data.load()?;
@@ -87,7 +91,7 @@ pub fn run(command: ScenariosCommand) -> Result<()> {
                 ..Default::default()
             };
             let sets = generate_sets(&families, &stats, &config)?;
-            let staged = StagedFolder::new(&out)?;
+            let staged = StagedFolder::new(&out, SCENARIO_SET)?;
             let written = sets.write(staged.path())?;
             staged.commit()?;
             for set in ScenarioSet::ALL {

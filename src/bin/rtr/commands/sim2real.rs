@@ -10,6 +10,9 @@ use rtr::{Error, Result};
 
 use super::args::{DataArgs, count};
 
+/// The kind of result set `rtr sim2real --plots` writes.
+const PLOTS: &str = "rtr sim2real --plots";
+
 #[derive(Args)]
 pub struct Sim2RealArgs {
     /// Recordings CSV: track_id,t,x,y,heading,speed,accel_cmd,steer_cmd[,wheelbase] (SI).
@@ -58,7 +61,11 @@ pub fn run(args: Sim2RealArgs) -> Result<()> {
     let _report_claim = claim_output_file(&args.report, "--report", &inputs)?;
     check_distinct_outputs(&args)?;
     let _claim = match &args.plots {
-        Some(dir) => Some(claim_output_folder(dir, "--plots", &inputs)?),
+        Some(dir) => {
+            let claim = claim_output_folder(dir, "--plots", &inputs)?;
+            rtr::io::check_result_folder(dir, PLOTS, &["regimes.svg", "tracks.svg"])?;
+            Some(claim)
+        }
         None => None,
     };
     let _dynamics_claim = match &args.save_dynamics {
@@ -112,7 +119,7 @@ pub fn run(args: Sim2RealArgs) -> Result<()> {
     };
     let plots = match &args.plots {
         Some(dir) => {
-            let staged = StagedFolder::new(dir)?;
+            let staged = StagedFolder::new(dir, PLOTS)?;
             let written = write_plots(staged.path(), &outcome)?;
             Some((staged, written))
         }

@@ -94,7 +94,7 @@ pub fn run(args: SweepArgs) -> Result<()> {
     let progress = bar("eval");
     let results = evaluate_points(&points, &dirs, &scenes, &device, &config, &progress)?;
     progress.finish_and_clear();
-    let staged = rtr::io::StagedFolder::result_set(&args.out, SWEEP_RESULTS)?;
+    let staged = rtr::io::StagedFolder::new(&args.out, SWEEP_RESULTS)?;
     write_sweep(staged.path(), &results, &scenes)?;
     staged.commit()?;
     rtr::out!("{}", rtr::eval::markdown_table(&results, &sets))?;
