@@ -861,7 +861,9 @@ fn a_model_loaded_with_another_shape_names_the_model_section() {
         text.contains("models/il/policy.bpk")
             && text.contains("[model]")
             && text.contains("config.toml")
-            && text.contains("expected Shape")
+            && text.contains("shape mismatch")
+            && text.contains("expected [")
+            && !text.contains("Shape {")
             && !text.contains("this version of rtr"),
         "{text}"
     );
