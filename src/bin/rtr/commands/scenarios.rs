@@ -78,8 +78,8 @@ pub fn run(command: ScenariosCommand) -> Result<()> {
                 .with_all("--families", &families)
                 .with("--data", data.dir());
             let _claim = claim_output_folder(&out, "--out", &inputs)?;
-            rtr::io::check_result_folder(&out, SCENARIO_SET, &["train", "eval", "ood"])?;
             refuse_earlier_sets(&out)?;
+            rtr::io::check_result_folder(&out, SCENARIO_SET, &["train", "eval", "ood"])?;
             let families = load_families(&families_folder(families)?)?;
             let dataset = data.load()?;
             let stats =
