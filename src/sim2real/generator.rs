@@ -10,6 +10,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 
+use super::command_timing::CommandTiming;
 use crate::data::{RecordedTrack, Recordings};
 use crate::geometry::wrap_angle;
 use crate::sim::catalogue::Effect;
@@ -55,37 +56,6 @@ pub struct GeneratorConfig {
     pub noise: SensorNoise,
     /// How the logged commands relate to the commands the plant received.
     pub command_timing: CommandTiming,
-}
-
-/// How a log's commands relate to what the vehicle received between two samples.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum CommandTiming {
-    /// Each logged command was held over the period that follows it (a controller running at
-    /// the log's rate).
-    #[default]
-    Held,
-    /// A controller [`CONTROLLER_STEPS_PER_SAMPLE`] times faster than the log: its command
-    /// changes between samples, and the log keeps its value at each sample time.
-    Sampled,
-}
-
-impl CommandTiming {
-    pub const NAMES: [&'static str; 2] = ["held", "sampled"];
-
-    pub fn from_name(name: &str) -> Option<Self> {
-        match name {
-            "held" => Some(Self::Held),
-            "sampled" => Some(Self::Sampled),
-            _ => None,
-        }
-    }
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Held => "held",
-            Self::Sampled => "sampled",
-        }
-    }
 }
 
 impl GeneratorConfig {

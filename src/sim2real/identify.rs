@@ -7,15 +7,18 @@ use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
+use super::command_timing::{
+    CommandTiming, PairedGain, ReadingOutcome, TimingDecision, TimingEvidence, as_held,
+};
 use super::discover::Discovery;
 use super::discover::discover;
 use super::fit::{Fit, FitOptions, evaluate, fit, standard_errors};
 use super::locate::{ChannelRms, locate};
 use super::noise::NoiseLevels;
-use super::report::{Comparison, Diagnosis, Report};
+use super::report::{Comparison, Diagnosis, Report, estimates};
 use super::simulate::{Candidate, StepError, WindowBatch, batches};
 use super::unexplained::{RegimeExcess, Unexplained, regime_excess};
-use super::windows::{Starts, Window, windows};
+use super::windows::{Starts, Window, rebuilt, windows};
 use crate::backend::Backend;
 use crate::data::Recordings;
 use crate::error::{Error, Result};
@@ -49,6 +52,9 @@ pub struct Sim2RealOptions {
     /// Whether equations found by the open-ended stage ([`super::discover`]) compete with
     /// the catalogue (the regression is always run and reported).
     pub discover: bool,
+    /// How the recordings' commands were applied between samples; none to fit both
+    /// readings and let held-out error decide ([`TimingDecision::between`]).
+    pub command_timing: Option<CommandTiming>,
 }
 
 impl Default for Sim2RealOptions {
@@ -66,6 +72,7 @@ impl Default for Sim2RealOptions {
             default_wheelbase_m: 2.8,
             commands_inferred: false,
             discover: true,
+            command_timing: None,
         }
     }
 }
@@ -241,11 +248,136 @@ pub fn identify(
     options: &Sim2RealOptions,
     progress: &(dyn Fn(&str) + Sync),
 ) -> Result<Outcome> {
-    let recordings = &at_most_100_hz(recordings);
-    let split = split(recordings, options)?;
-    let fitter = Fitter::new(&split, options)?;
-    let selection = select(&fitter, recordings, progress);
+    let logged = at_most_100_hz(recordings);
+    let logged_split = split(&logged, options)?;
+    let readings: Vec<Reading> = timings_to_try(options)
+        .into_iter()
+        .map(|timing| Reading::new(&logged, &logged_split, timing, options))
+        .collect();
+    let fitters = readings
+        .iter()
+        .map(|r| Fitter::new(&r.split, options))
+        .collect::<Result<Vec<_>>>()?;
+    let selections: Vec<Selection> = readings
+        .iter()
+        .zip(&fitters)
+        .map(|(reading, fitter)| {
+            if readings.len() > 1 {
+                progress(&format!(
+                    "reading the commands as {}",
+                    reading.timing.name()
+                ));
+            }
+            select(fitter, &reading.recordings, progress)
+        })
+        .collect();
+    let decision = decide_timing(&readings, &fitters[0], &selections);
+    let chosen = readings
+        .iter()
+        .position(|r| r.timing == decision.reading)
+        .unwrap_or(0);
+    diagnose(
+        &readings[chosen],
+        &fitters[chosen],
+        selections
+            .into_iter()
+            .nth(chosen)
+            .expect("one selection per reading"),
+        decision,
+        progress,
+    )
+}
 
+/// The recordings with their commands read one way, cut into the logged split's windows.
+struct Reading {
+    timing: CommandTiming,
+    recordings: Recordings,
+    split: Split,
+}
+
+impl Reading {
+    fn new(
+        logged: &Recordings,
+        split: &Split,
+        timing: CommandTiming,
+        options: &Sim2RealOptions,
+    ) -> Self {
+        let recordings = as_held(logged, timing);
+        let past = crate::sim::catalogue::MAX_DEAD_TIME_S;
+        let again = |w: &[Window]| rebuilt(&recordings, w, past, options.default_wheelbase_m);
+        let split = Split {
+            train_tracks: split.train_tracks.clone(),
+            heldout_tracks: split.heldout_tracks.clone(),
+            train: again(&split.train),
+            heldout: again(&split.heldout),
+            short: again(&split.short),
+        };
+        Self {
+            timing,
+            recordings,
+            split,
+        }
+    }
+}
+
+/// The command readings to fit: the declared one, else both.
+fn timings_to_try(options: &Sim2RealOptions) -> Vec<CommandTiming> {
+    match options.command_timing {
+        Some(timing) => vec![timing],
+        None => vec![CommandTiming::Held, CommandTiming::Sampled],
+    }
+}
+
+/// Which reading's model to report. Both readings share their windows, so their held-out
+/// errors compare pair by pair.
+fn decide_timing(
+    readings: &[Reading],
+    fitter: &Fitter,
+    selections: &[Selection],
+) -> TimingDecision {
+    let [held, sampled] = selections else {
+        return TimingDecision::single(readings[0].timing, TimingEvidence::Declared);
+    };
+    let outcome = |timing, selection: &Selection| {
+        let fit = &selection.final_model.fit;
+        let (_, effects) = estimates(fit);
+        ReadingOutcome {
+            reading: timing,
+            model: fit.candidate.label(),
+            terms: fit.candidate.effects.len() + fit.candidate.discovered.len(),
+            heldout_pos_rmse_m: ChannelRms::of(selection.final_model.errors.iter().flatten()).pos_m,
+            params: effects
+                .into_iter()
+                .map(|(e, p)| (e, p.into_iter().map(|(k, v)| (k, v.value)).collect()))
+                .collect(),
+        }
+    };
+    let gain = |new: &Selection, reference: &Selection| {
+        let c = fitter.compare(&new.final_model, &reference.final_model);
+        PairedGain {
+            improvement_pct: c.improvement_pct,
+            t_stat: c.t_stat,
+            significant: c.significant,
+        }
+    };
+    TimingDecision::between(
+        outcome(CommandTiming::Held, held),
+        outcome(CommandTiming::Sampled, sampled),
+        [gain(sampled, held), gain(held, sampled)],
+        fitter.options.min_improvement_pct,
+    )
+}
+
+/// Where the mismatch is before and after the chosen model, what is left unexplained, and
+/// the report.
+fn diagnose(
+    reading: &Reading,
+    fitter: &Fitter,
+    selection: Selection,
+    decision: TimingDecision,
+    progress: &(dyn Fn(&str) + Sync),
+) -> Result<Outcome> {
+    let (recordings, split) = (&reading.recordings, &reading.split);
     progress("locating the mismatch");
     let short_errors = |f: &Fit| evaluate(f, &fitter.short, split.short.len(), &fitter.plain);
     let baseline_short = short_errors(&selection.baseline.fit);
@@ -271,14 +403,15 @@ pub fn identify(
     };
     let report = Report::new(
         recordings,
-        options,
+        fitter.options,
         [&split.train, &split.heldout],
         &selection,
         diagnosis,
+        decision,
     );
     Ok(Outcome {
         report,
-        heldout: split.heldout,
+        heldout: split.heldout.clone(),
         baseline: selection.baseline,
         final_model: selection.final_model,
         excess_before,

@@ -7,6 +7,7 @@
 //! parsimony selection on held-out tracks (pairs when one effect is not enough) → report.
 
 pub mod a9;
+pub mod command_timing;
 pub mod discover;
 
 pub mod fit;
@@ -22,6 +23,7 @@ pub mod unexplained;
 pub mod windows;
 
 pub use crate::sim::catalogue::{DynamicsFile, Effect, FittedTerm};
-pub use generator::{CommandTiming, GeneratorConfig, SensorNoise, Uncatalogued, generate};
+pub use command_timing::{CommandTiming, TimingDecision, TimingEvidence};
+pub use generator::{GeneratorConfig, SensorNoise, Uncatalogued, generate};
 pub use identify::{Outcome, Sim2RealOptions, identify, thinning};
 pub use report::Report;

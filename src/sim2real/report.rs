@@ -4,6 +4,7 @@ use std::collections::BTreeMap;
 
 use serde::Serialize;
 
+use super::command_timing::TimingDecision;
 use super::discover::Discovery;
 use super::fit::Fit;
 use super::identify::{Evaluated, Selection, Sim2RealOptions};
@@ -139,7 +140,7 @@ pub fn equation_text(terms: &[DiscoveredEstimate]) -> String {
 }
 
 /// The wheelbase scale and each effect's parameters of a fit.
-fn estimates(fit: &Fit) -> (Estimate, EffectEstimates) {
+pub(super) fn estimates(fit: &Fit) -> (Estimate, EffectEstimates) {
     let specs = fit.candidate.specs();
     let wheelbase = Estimate {
         value: fit.values[0],
@@ -220,6 +221,10 @@ pub struct Finding {
     pub discovered: Vec<DiscoveredEstimate>,
     pub params: BTreeMap<String, f64>,
     pub params_std_error: BTreeMap<String, f64>,
+    /// About 95 %: two cluster-robust standard errors either side; times (lags, delays)
+    /// also +- a tenth of the sampling period ([`TIME_RESOLUTION_PERIODS`]); widened to the
+    /// other reading's value when the command timing was ambiguous.
+    pub params_interval: BTreeMap<String, [f64; 2]>,
     /// Held-out error of the model with this and every earlier finding.
     pub heldout_pos_rmse_m: f64,
     /// Against the model before this finding (the nominal refit for the first).
@@ -251,6 +256,8 @@ pub struct Report {
     /// Tracks that declare no wheelbase (they get `options.default_wheelbase_m`).
     pub tracks_without_wheelbase: usize,
     pub options: Sim2RealOptions,
+    /// How the commands were read between samples, and why.
+    pub command_timing: TimingDecision,
     pub baseline: Baseline,
     pub nominal_refit: NominalRefit,
     pub mismatch: Mismatch,
@@ -309,6 +316,7 @@ impl Report {
         [train, heldout]: [&[Window]; 2],
         selection: &Selection,
         diagnosis: Diagnosis,
+        command_timing: TimingDecision,
     ) -> Self {
         let baseline_rmse = rmse(&selection.baseline.errors);
         let (refit_wheelbase, _) = estimates(&selection.refit.fit);
@@ -328,6 +336,16 @@ impl Report {
                 .filter(|t| t.wheelbase.is_none())
                 .count(),
             options: options.clone(),
+            findings: findings(
+                &selection.chosen,
+                &command_timing,
+                recordings
+                    .tracks
+                    .iter()
+                    .map(|t| t.period)
+                    .fold(0.0, f64::max),
+            ),
+            command_timing,
             baseline: Baseline {
                 heldout_pos_rmse_m: baseline_rmse,
                 wheelbase: "declared",
@@ -338,7 +356,6 @@ impl Report {
             },
             mismatch: diagnosis.before,
             candidates: candidate_results(selection),
-            findings: findings(&selection.chosen),
             not_identifiable: not_identifiable(&selection.tried, options),
             final_model: Final::new(&selection.final_model, baseline_rmse, diagnosis.after),
             unexplained: diagnosis.unexplained,
@@ -404,6 +421,7 @@ impl Report {
             "nominal refit: wheelbase x{:.3} (+-{:.3}), held-out {:.3} m",
             wb.value, wb.std_error, self.nominal_refit.heldout_pos_rmse_m
         ));
+        lines.push(self.command_timing.summary());
         if self.findings.is_empty() {
             lines.push(if self.unexplained.at_floor {
                 "findings: none. No catalogue effect lowers held-out error by a clear margin, \
@@ -423,7 +441,10 @@ impl Report {
                 None => f
                     .params
                     .iter()
-                    .map(|(k, v)| format!("{k} = {v:.4} +- {:.4}", f.params_std_error[k]))
+                    .map(|(k, v)| {
+                        let [low, high] = f.params_interval[k];
+                        format!("{k} = {v:.4} (95 % {low:.4} .. {high:.4})")
+                    })
                     .collect(),
             };
             lines.push(format!(
@@ -489,8 +510,20 @@ fn candidate_results(selection: &Selection) -> Vec<CandidateResult> {
         .collect()
 }
 
-/// One finding per kept model: what it added to the model before it.
-fn findings(chosen: &[(Evaluated, Comparison)]) -> Vec<Finding> {
+/// How finely, in sampling periods, a simulator stepping once per sample resolves a time
+/// constant. Where within a period a command takes effect and how the actuator moves within
+/// it are below what the step sees, so a fitted lag or delay carries a discretisation error
+/// that no amount of data shrinks: on the generator's continuous plant, about 0.04 periods
+/// (10 and 20 Hz logs, lags and delay); a tenth leaves a margin.
+pub const TIME_RESOLUTION_PERIODS: f64 = 0.1;
+
+/// One finding per kept model: what it added to the model before it. `period` is the
+/// coarsest sampling period of the recordings (s).
+fn findings(
+    chosen: &[(Evaluated, Comparison)],
+    timing: &TimingDecision,
+    period: f64,
+) -> Vec<Finding> {
     let mut previous: Option<&Fit> = None;
     chosen
         .iter()
@@ -501,7 +534,7 @@ fn findings(chosen: &[(Evaluated, Comparison)]) -> Vec<Finding> {
             if added_discovered {
                 Finding::discovered(&e.fit, c)
             } else {
-                Finding::catalogue(&e.fit, c)
+                Finding::catalogue(&e.fit, c, timing, period)
             }
         })
         .collect()
@@ -537,6 +570,7 @@ impl Finding {
             discovered: terms,
             params: BTreeMap::new(),
             params_std_error: BTreeMap::new(),
+            params_interval: BTreeMap::new(),
             heldout_pos_rmse_m: c.rmse_after_m,
             improvement_pct: c.improvement_pct,
             t_stat: c.t_stat,
@@ -544,9 +578,26 @@ impl Finding {
     }
 
     /// The catalogue effect that `fit` added (its last).
-    fn catalogue(fit: &Fit, c: &Comparison) -> Self {
+    fn catalogue(fit: &Fit, c: &Comparison, timing: &TimingDecision, period: f64) -> Self {
         let (_, effects) = estimates(fit);
         let (effect, params) = effects.last().cloned().expect("an effect");
+        let interval = |name: &str, e: &Estimate| {
+            let is_time = effect
+                .params()
+                .iter()
+                .any(|p| p.name == name && p.unit == "s");
+            let resolution = if is_time {
+                TIME_RESOLUTION_PERIODS * period
+            } else {
+                0.0
+            };
+            let half_width = 2.0 * e.std_error + resolution;
+            let (mut low, mut high) = (e.value - half_width, e.value + half_width);
+            if let Some(other) = timing.ambiguous_value(effect, name) {
+                (low, high) = (low.min(other), high.max(other));
+            }
+            [low, high]
+        };
         Self {
             effect: Some(effect),
             name: effect.name().into(),
@@ -557,6 +608,10 @@ impl Finding {
             params_std_error: params
                 .iter()
                 .map(|(k, v)| (k.clone(), v.std_error))
+                .collect(),
+            params_interval: params
+                .iter()
+                .map(|(k, v)| (k.clone(), interval(k, v)))
                 .collect(),
             heldout_pos_rmse_m: c.rmse_after_m,
             improvement_pct: c.improvement_pct,

@@ -97,7 +97,7 @@ pub fn windows(
         let track = &recordings.tracks[index];
         let period = track.period;
         let steps = (horizon_s / period).round() as usize;
-        let half = ((DENOISE_HALF_WIDTH_S / period).round() as usize).max(2);
+        let half = denoise_half_width(period);
         let stride = ((stride_s / period).round() as usize).max(1);
         let heading = unwrap(&track.heading);
         let mut start = half;
@@ -127,6 +127,37 @@ pub fn windows(
         }
     }
     out
+}
+
+/// `windows` cut again from `recordings`, the same tracks with their commands read another
+/// way: the same starts and horizons, so two readings' errors stay paired window by window.
+pub fn rebuilt(
+    recordings: &Recordings,
+    windows: &[Window],
+    past_s: f64,
+    default_wheelbase: f64,
+) -> Vec<Window> {
+    windows
+        .iter()
+        .map(|w| {
+            let track = &recordings.tracks[w.track];
+            window(
+                track,
+                w.track,
+                &unwrap(&track.heading),
+                w.start,
+                w.steps(),
+                denoise_half_width(track.period),
+                past_s,
+                default_wheelbase,
+            )
+        })
+        .collect()
+}
+
+/// Samples on each side of a window's start in its denoising fit.
+fn denoise_half_width(period: f64) -> usize {
+    ((DENOISE_HALF_WIDTH_S / period).round() as usize).max(2)
 }
 
 #[allow(clippy::too_many_arguments)]

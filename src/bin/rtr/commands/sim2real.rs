@@ -5,7 +5,9 @@ use std::path::PathBuf;
 use clap::Args;
 
 use rtr::io::{Inputs, StagedFolder, claim_output_file, claim_output_folder};
-use rtr::sim2real::{Sim2RealOptions, a9::a9_recordings, identify, plots::write_plots, thinning};
+use rtr::sim2real::{
+    CommandTiming, Sim2RealOptions, a9::a9_recordings, identify, plots::write_plots, thinning,
+};
 use rtr::{Error, Result};
 
 use super::args::{DataArgs, count};
@@ -46,6 +48,13 @@ pub struct Sim2RealArgs {
     /// regressed and reported, but not kept.
     #[arg(long)]
     catalogue_only: bool,
+    /// How the logged commands were applied between samples: `held` for the period after
+    /// each sample (a controller at the log's rate), `sampled` from a controller faster than
+    /// the log, or `auto`: fit both and keep the one held-out error or fewer terms favour
+    /// (held when neither does; the report says which and why). Sampled commands read as
+    /// held make lags and dead time about half a period short.
+    #[arg(long, default_value = "auto")]
+    command_timing: String,
 }
 
 pub fn run(args: Sim2RealArgs) -> Result<()> {
@@ -96,6 +105,7 @@ pub fn run(args: Sim2RealArgs) -> Result<()> {
         seed: args.seed,
         commands_inferred,
         discover: !args.catalogue_only,
+        command_timing: command_timing(&args.command_timing)?,
         ..Default::default()
     };
     options.fit.iterations = args.iterations;
@@ -177,4 +187,17 @@ fn check_distinct_outputs(args: &Sim2RealArgs) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// `auto` (none: decided from the data) or a named timing.
+fn command_timing(name: &str) -> Result<Option<CommandTiming>> {
+    if name == "auto" {
+        return Ok(None);
+    }
+    CommandTiming::from_name(name).map(Some).ok_or_else(|| {
+        Error::InvalidArgument(format!(
+            "unknown --command-timing `{name}`: expected auto, {}",
+            CommandTiming::NAMES.join(" or ")
+        ))
+    })
 }
