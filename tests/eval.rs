@@ -223,3 +223,30 @@ fn every_shipped_model_loads_with_its_method_and_card() {
         assert!(small_card.contains(&format!("experiments/main/small/{folder}.toml")));
     }
 }
+
+/// PPO alone at the field's budget: the model its study's table was measured on, and held out
+/// below IL's long-tail infraction rate (the claim of `experiments/rl_at_scale/`).
+#[test]
+fn the_rl_at_scale_model_is_the_one_its_study_measured() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let dir = root.join("models/rl_at_scale");
+    let policy = rtr::eval::TrainedPolicy::load(&dir, &cpu()).expect("models/rl_at_scale loads");
+    assert_eq!(policy.method, "RL");
+    let card = std::fs::read_to_string(dir.join("CARD.md")).expect("card");
+    assert!(card.contains("experiments/rl_at_scale/results.json"));
+    let read = |path: &str| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(root.join(path)).expect(path)).expect(path)
+    };
+    let study = read("experiments/rl_at_scale/results.json");
+    assert_eq!(
+        study["checkpoints"]["RL"].as_str(),
+        Some("models/rl_at_scale/policy.bpk")
+    );
+    let il = read("experiments/main/results.json")["methods"]["IL"]["longtail"]["infraction_pct"]
+        .as_f64()
+        .expect("IL long-tail");
+    let rl = study["methods"]["RL"]["longtail"]["infraction_pct"]
+        .as_f64()
+        .expect("RL long-tail");
+    assert!(rl < il, "long-tail infractions: RL {rl} %, IL {il} %");
+}
