@@ -276,7 +276,7 @@ fn a_result_folder_is_checked_before_the_work() {
 }
 
 /// What is named twice is refused, not done twice: a sweep point, a probe task, a
-/// checkpoint to evaluate or to average, a CommonRoad clip.
+/// checkpoint to evaluate or to average, a scene set, a CommonRoad clip.
 #[test]
 fn an_input_named_twice_is_refused() {
     assert_refused(
@@ -306,6 +306,18 @@ fn an_input_named_twice_is_refused() {
             "1",
         ],
         &["names the same policy", "pass each once"],
+    );
+    assert_refused(
+        &[
+            "eval",
+            "--checkpoint",
+            "models/il_main",
+            "--set",
+            "nominal,longtail,nominal",
+            "--scenes",
+            "1",
+        ],
+        &["--set names `nominal` twice"],
     );
     let dir = tempfile::tempdir().expect("temp dir");
     let out = dir.path().join("avg");

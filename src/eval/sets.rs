@@ -55,6 +55,24 @@ impl EvalSet {
             })
     }
 
+    /// The sets of a `--set` list, each named once: a set given twice would be evaluated
+    /// twice and its columns repeated in the table.
+    pub fn parse_list(texts: &[String]) -> Result<Vec<Self>> {
+        let mut sets = Vec::with_capacity(texts.len());
+        for text in texts {
+            let set = Self::parse(text.trim())?;
+            if sets.contains(&set) {
+                return Err(Error::InvalidArgument(format!(
+                    "--set names `{}` twice: expected each of nominal, longtail, ood, \
+                     commonroad at most once",
+                    set.name()
+                )));
+            }
+            sets.push(set);
+        }
+        Ok(sets)
+    }
+
     /// Real scenes whose controlled agents have logged futures (reconstruction and JSD
     /// metrics apply); the generated sets have none.
     pub fn has_logs(self) -> bool {
@@ -176,4 +194,22 @@ pub fn load_sets(
             EvalScenes::generated(set, scenarios)
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_set_list_names_each_set_once() {
+        let list =
+            |t: &[&str]| EvalSet::parse_list(&t.iter().map(|s| s.to_string()).collect::<Vec<_>>());
+        assert_eq!(
+            list(&["nominal", " longtail"]).expect("two sets"),
+            [EvalSet::Nominal, EvalSet::Longtail]
+        );
+        let twice = list(&["nominal", "ood", " nominal"]).expect_err("nominal twice");
+        assert!(twice.to_string().contains("`nominal` twice"), "{twice}");
+        assert!(list(&["nominal", "bogus"]).is_err());
+    }
 }

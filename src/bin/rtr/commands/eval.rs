@@ -111,11 +111,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
             )));
         }
     }
-    let mut sets = args
-        .set
-        .iter()
-        .map(|s| EvalSet::parse(s.trim()))
-        .collect::<Result<Vec<_>>>()?;
+    let mut sets = EvalSet::parse_list(&args.set)?;
     let generated = |s: &EvalSet| matches!(s, EvalSet::Longtail | EvalSet::Ood);
     if args.generated_speed_limit.is_some() && !sets.iter().any(generated) {
         return Err(Error::InvalidArgument(

@@ -58,11 +58,7 @@ pub fn run(args: SweepArgs) -> Result<()> {
     }
     let _claim = claim_output_folder(&args.out, "--out", &inputs)?;
     check_result_folder(&args.out, SWEEP_RESULTS, &["results.json", "table.md"])?;
-    let sets = args
-        .set
-        .iter()
-        .map(|s| EvalSet::parse(s.trim()))
-        .collect::<Result<Vec<_>>>()?;
+    let sets = EvalSet::parse_list(&args.set)?;
     rtr::io::check_input_file(&args.config, "--config")?;
     let mut base = rtr::train::TrainConfig::from_toml_file(&args.config)?;
     if let Some(dir) = &args.scenarios {
