@@ -700,6 +700,19 @@ fn counts_out_of_range_are_refused_naming_the_flag() {
         "{err}"
     );
     let out = rtr(&[
+        "sim2real",
+        "--a9",
+        "--report",
+        "r.json",
+        "--command-timing",
+        "zoh",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("--command-timing `zoh`") && err.contains("auto"),
+        "{err}"
+    );
+    let out = rtr(&[
         "scenarios",
         "generate",
         "--out",

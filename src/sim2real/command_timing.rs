@@ -3,9 +3,9 @@
 //!
 //! A log records the command at each sample time. Whether it was then held for the period
 //! (a controller at the log's rate) or kept changing (a controller faster than the log,
-//! sampled by the logger) cannot be told from the log: a command sampled from a fast
-//! controller acts about half a period earlier than the same log read as held, which is
-//! exactly what a dead time half a period shorter does. System identification tools ask for
+//! sampled by the logger) is not in the log, and a command sampled from a fast controller
+//! acts about half a period earlier than the same log read as held: exactly what a dead time
+//! half a period shorter does, so with a dead time in the model the data cannot tell. System identification tools ask for
 //! a signal's inter-sample behaviour (zero- or first-order hold); here it may be declared, or
 //! both readings are fitted and the data decides where it can (see [`TimingDecision`]).
 
@@ -203,7 +203,7 @@ impl TimingDecision {
             }
             _ => format!(
                 "{read}, but the log cannot tell (both readings fit alike with as many terms; \
-                 declare --command-timing): {other_reading}; intervals span both"
+                 declare --command-timing): {other_reading}; parameter intervals span both"
             ),
         }
     }

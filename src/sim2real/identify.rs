@@ -95,6 +95,7 @@ pub struct Evaluated {
     pub errors: Vec<Vec<StepError>>,
 }
 
+#[derive(Clone)]
 struct Split {
     train_tracks: Vec<usize>,
     heldout_tracks: Vec<usize>,
@@ -303,14 +304,19 @@ impl Reading {
         options: &Sim2RealOptions,
     ) -> Self {
         let recordings = as_held(logged, timing);
-        let past = crate::sim::catalogue::MAX_DEAD_TIME_S;
-        let again = |w: &[Window]| rebuilt(&recordings, w, past, options.default_wheelbase_m);
-        let split = Split {
-            train_tracks: split.train_tracks.clone(),
-            heldout_tracks: split.heldout_tracks.clone(),
-            train: again(&split.train),
-            heldout: again(&split.heldout),
-            short: again(&split.short),
+        let split = if timing == CommandTiming::Held {
+            // The log's own commands: its windows as they are.
+            split.clone()
+        } else {
+            let past = crate::sim::catalogue::MAX_DEAD_TIME_S;
+            let again = |w: &[Window]| rebuilt(&recordings, w, past, options.default_wheelbase_m);
+            Split {
+                train_tracks: split.train_tracks.clone(),
+                heldout_tracks: split.heldout_tracks.clone(),
+                train: again(&split.train),
+                heldout: again(&split.heldout),
+                short: again(&split.short),
+            }
         };
         Self {
             timing,

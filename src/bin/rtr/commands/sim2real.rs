@@ -64,6 +64,7 @@ pub fn run(args: Sim2RealArgs) -> Result<()> {
             args.horizon
         )));
     }
+    let command_timing = command_timing(&args.command_timing)?;
     let inputs = Inputs::new()
         .with_all("--recordings", &args.recordings)
         .with("--data", args.data.dir());
@@ -105,7 +106,7 @@ pub fn run(args: Sim2RealArgs) -> Result<()> {
         seed: args.seed,
         commands_inferred,
         discover: !args.catalogue_only,
-        command_timing: command_timing(&args.command_timing)?,
+        command_timing,
         ..Default::default()
     };
     options.fit.iterations = args.iterations;
