@@ -985,7 +985,7 @@ fn a_refused_training_run_leaves_no_folder() {
 fn model_average_writes_a_loadable_policy_and_refuses_mixed_runs() {
     let dir = tempfile::tempdir().expect("temp dir");
     let out = dir.path().join("mean");
-    let il = "models/il_dropout80";
+    let il = "models/il";
     let average = |checkpoints: &[&str], out: &std::path::Path| {
         let mut args = vec!["model", "average"];
         for c in checkpoints {
@@ -1035,7 +1035,7 @@ fn model_average_writes_a_loadable_policy_and_refuses_mixed_runs() {
     let (ok, err) = average(&[il, &second_arg], &out);
     assert!(!ok && err.contains("already holds"), "{err}");
     let other = dir.path().join("mixed");
-    let (ok, err) = average(&[il, "models/rtr_dropout80"], &other);
+    let (ok, err) = average(&[il, "models/rtr"], &other);
     assert!(!ok && err.contains("one run") && !other.exists(), "{err}");
     let (ok, err) = average(&[il], &other);
     assert!(!ok && err.contains("at least two"), "{err}");
