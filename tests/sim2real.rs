@@ -113,6 +113,7 @@ fn no_effect_reports_nothing() {
     // model's held-out error sits at the noise floor estimated from the recordings.
     let u = &report.unexplained;
     assert!(u.at_floor, "{}", report.summary().join("\n"));
+    assert!(report.still_open.is_none(), "{:?}", report.still_open);
     assert!(
         (u.ratio - 1.0).abs() <= 0.1,
         "{}",
@@ -225,6 +226,41 @@ fn an_asymmetric_brake_gain_is_flagged_then_discovered() {
         Feature::UBrake,
         0.3,
     );
+}
+
+/// Physics that neither the catalogue nor discovery's library expresses (the engine's power
+/// capping the acceleration at P / v): with nothing kept, the report ends with one line on
+/// what was tried and where the mismatch remains: the along-track channel, where the
+/// acceleration commands are large.
+#[test]
+fn an_unmodelled_power_limit_ends_with_what_was_tried_and_where_it_remains() {
+    let physics = Uncatalogued::PowerLimit {
+        specific_power_w_kg: 20.0,
+    };
+    let recordings = generate(&GeneratorConfig::with_uncatalogued(physics, 7), &device());
+    let options = Sim2RealOptions {
+        discover: false,
+        ..Default::default()
+    };
+    let report = identify(&recordings, &options, &|_| {})
+        .expect("identification runs")
+        .report;
+    let summary = report.summary().join("\n");
+    assert!(report.findings.is_empty(), "{summary}");
+    let line = report
+        .still_open
+        .clone()
+        .expect("a line on what is still open");
+    for part in [
+        "catalogue's 7 effects",
+        "discovery not run",
+        "none kept",
+        "along channel",
+        "accel_cmd",
+    ] {
+        assert!(line.contains(part), "{part}: {line}");
+    }
+    assert_eq!(summary.lines().last(), Some(line.as_str()));
 }
 
 #[test]

@@ -94,10 +94,14 @@ pub enum Uncatalogued {
     SpeedDependentSteering { k_per_m_s: f64 },
     /// Braking acts `gain` times as strongly as commanded; throttle as commanded.
     BrakeGain { gain: f64 },
+    /// The engine's power caps the acceleration at `specific_power_w_kg / v` (power over
+    /// mass and speed): a limit that tightens with speed, which a loaded truck reaches on a
+    /// motorway. Braking is not limited.
+    PowerLimit { specific_power_w_kg: f64 },
 }
 
 impl Uncatalogued {
-    pub const NAMES: [&'static str; 2] = ["speed_dependent_steering", "brake_gain"];
+    pub const NAMES: [&'static str; 3] = ["speed_dependent_steering", "brake_gain", "power_limit"];
 
     /// By name, at a realistic strength.
     pub fn typical(name: &str) -> Option<Self> {
@@ -106,6 +110,9 @@ impl Uncatalogued {
                 Some(Uncatalogued::SpeedDependentSteering { k_per_m_s: -0.006 })
             }
             "brake_gain" => Some(Uncatalogued::BrakeGain { gain: 1.3 }),
+            "power_limit" => Some(Uncatalogued::PowerLimit {
+                specific_power_w_kg: 20.0,
+            }),
             _ => None,
         }
     }
@@ -124,6 +131,7 @@ impl DynamicsTerm for UncataloguedTerm {
         match self.0 {
             Uncatalogued::SpeedDependentSteering { .. } => "speed_dependent_steering",
             Uncatalogued::BrakeGain { .. } => "brake_gain",
+            Uncatalogued::PowerLimit { .. } => "power_limit",
         }
     }
 
@@ -138,6 +146,19 @@ impl DynamicsTerm for UncataloguedTerm {
             Uncatalogued::BrakeGain { gain } => {
                 let braking = input.controls.accel.clone().clamp_max(0.0);
                 d.speed = d.speed + braking.mul_scalar(gain - 1.0);
+            }
+            Uncatalogued::PowerLimit {
+                specific_power_w_kg,
+            } => {
+                let limit = input
+                    .state
+                    .speed
+                    .clone()
+                    .clamp_min(0.1)
+                    .recip()
+                    .mul_scalar(specific_power_w_kg);
+                let excess = (input.controls.accel.clone() - limit).clamp_min(0.0);
+                d.speed = d.speed - excess;
             }
         }
         d

@@ -19,6 +19,7 @@ pub mod plots;
 
 pub mod report;
 pub mod simulate;
+pub mod still_open;
 pub mod unexplained;
 pub mod windows;
 

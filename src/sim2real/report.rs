@@ -274,6 +274,9 @@ pub struct Report {
     /// The discovered equation refitted through the rollout as a candidate on its own, and
     /// its held-out comparison with the nominal refit (none when nothing was selected).
     pub discovered_candidate: Option<DiscoveredCandidate>,
+    /// When the final model stays above the noise floor: one line on what was tried and
+    /// which channel and regime the rest of the mismatch sits in.
+    pub still_open: Option<String>,
 }
 
 /// The discovered equation as a candidate beside the catalogue's.
@@ -364,7 +367,14 @@ impl Report {
                 .discovered
                 .as_ref()
                 .map(|(e, c)| DiscoveredCandidate::new(e, c)),
+            still_open: None,
         }
+        .with_still_open()
+    }
+
+    fn with_still_open(mut self) -> Self {
+        self.still_open = super::still_open::line(&self);
+        self
     }
 
     /// The identified terms, to load into the training simulator.
@@ -486,6 +496,7 @@ impl Report {
             self.final_model.improvement_vs_baseline_pct
         ));
         lines.extend(self.unexplained.summary());
+        lines.extend(self.still_open.clone());
         lines
     }
 }

@@ -16,7 +16,7 @@ pub enum RecordingsCommand {
     /// noise: a known answer for `rtr sim2real`.
     Generate {
         /// accel_lag, steer_lag, dead_time, drag, understeer, steer_rate_limit, sideslip, none,
-        /// or physics outside the catalogue: speed_dependent_steering, brake_gain.
+        /// or physics outside the catalogue: speed_dependent_steering, brake_gain, power_limit.
         #[arg(long)]
         effect: String,
         #[arg(long, default_value_t = 11)]
