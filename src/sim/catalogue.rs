@@ -221,11 +221,14 @@ impl DynamicsFile {
     pub fn validate(&self, source: &str) -> Result<()> {
         for (k, term) in self.discovered.iter().enumerate() {
             let place = format!("discovered[{k}]");
-            if !Feature::library(term.equation).contains(&term.feature) {
-                let names: Vec<&str> = Feature::library(term.equation)
+            if !term.feature.is_in_library(term.equation) {
+                let mut names: Vec<String> = Feature::library(term.equation)
                     .iter()
                     .map(|f| f.symbol())
                     .collect();
+                if term.equation == Equation::Speed {
+                    names.push("max(u - p / v, 0) with p > 0 (power_limit)".into());
+                }
                 return Err(Error::invalid(
                     source,
                     &place,

@@ -35,7 +35,7 @@ impl Equation {
 /// One candidate term: `v` speed, `u` acceleration command, `phi` steering angle (after any
 /// actuation term). `v tan(phi)` itself is left out: it is the nominal yaw rate times 1 / L,
 /// which the wheelbase refit already owns.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Feature {
     /// 1 (a constant offset).
@@ -56,7 +56,16 @@ pub enum Feature {
     KappaV,
     /// v^3 tan(phi).
     KappaV2,
+    /// max(u - p / v, 0): the command above a limit that tightens with speed, as an engine's
+    /// power caps the acceleration at power / (mass x speed); `p` in W/kg (m^2/s^3). The
+    /// limit is chosen from the data ([`Feature::power_limit_grid`]); with coefficient -1 the
+    /// acceleration is capped at p / v.
+    PowerLimit { specific_power_w_kg: f64 },
 }
+
+/// Speeds below this (m/s) count as this in `p / v`: at a standstill the limit is far above any
+/// command anyway.
+const POWER_LIMIT_MIN_SPEED_M_S: f64 = 0.1;
 
 impl Feature {
     /// The library of each equation.
@@ -79,23 +88,65 @@ impl Feature {
         }
     }
 
+    /// The limits [`Feature::PowerLimit`] is tried at, W/kg: 2 to 400 in steps of 5 %, from
+    /// a laden lorry's to a sports car's power over mass.
+    pub fn power_limit_grid() -> impl Iterator<Item = Feature> {
+        (0..110).map(|k| Feature::PowerLimit {
+            specific_power_w_kg: 2.0 * 1.05f64.powi(k),
+        })
+    }
+
+    /// Whether `self` is a term of `equation`'s library (a power limit at any positive,
+    /// finite specific power).
+    pub fn is_in_library(self, equation: Equation) -> bool {
+        match self {
+            Feature::PowerLimit {
+                specific_power_w_kg,
+            } => {
+                equation == Equation::Speed
+                    && specific_power_w_kg.is_finite()
+                    && specific_power_w_kg > 0.0
+            }
+            f => Feature::library(equation).contains(&f),
+        }
+    }
+
     /// Whether the feature involves a command (so it cannot be identified when the commands
     /// were inferred from the motion itself).
     pub fn involves_commands(self) -> bool {
         !matches!(self, Feature::One | Feature::V | Feature::V2)
     }
 
-    pub fn symbol(self) -> &'static str {
+    /// The feature's kind, as dynamics files spell it (a power limit without its value).
+    pub fn name(self) -> &'static str {
         match self {
-            Feature::One => "1",
+            Feature::One => "one",
             Feature::V => "v",
-            Feature::V2 => "v^2",
+            Feature::V2 => "v2",
             Feature::U => "u",
-            Feature::UBrake => "min(u, 0)",
-            Feature::VU => "v u",
-            Feature::TanPhi => "tan(phi)",
-            Feature::KappaV => "v^2 tan(phi)",
-            Feature::KappaV2 => "v^3 tan(phi)",
+            Feature::UBrake => "u_brake",
+            Feature::VU => "v_u",
+            Feature::TanPhi => "tan_phi",
+            Feature::KappaV => "kappa_v",
+            Feature::KappaV2 => "kappa_v2",
+            Feature::PowerLimit { .. } => "power_limit",
+        }
+    }
+
+    pub fn symbol(self) -> String {
+        match self {
+            Feature::One => "1".into(),
+            Feature::V => "v".into(),
+            Feature::V2 => "v^2".into(),
+            Feature::U => "u".into(),
+            Feature::UBrake => "min(u, 0)".into(),
+            Feature::VU => "v u".into(),
+            Feature::TanPhi => "tan(phi)".into(),
+            Feature::KappaV => "v^2 tan(phi)".into(),
+            Feature::KappaV2 => "v^3 tan(phi)".into(),
+            Feature::PowerLimit {
+                specific_power_w_kg,
+            } => format!("max(u - {specific_power_w_kg:.1} / v, 0)"),
         }
     }
 
@@ -142,6 +193,23 @@ impl Feature {
                     "yaw rate grows with speed squared (oversteer)".into()
                 }
             }
+            (
+                Equation::Speed,
+                Feature::PowerLimit {
+                    specific_power_w_kg,
+                },
+            ) => {
+                if coefficient < 0.0 {
+                    format!(
+                        "acceleration above {specific_power_w_kg:.1} / v m/s^2 is cut by {pct:.0} % \
+                         (an engine's power limit, {specific_power_w_kg:.1} W/kg)"
+                    )
+                } else {
+                    format!(
+                        "acceleration above {specific_power_w_kg:.1} / v m/s^2 acts {pct:.0} % more"
+                    )
+                }
+            }
             (_, f) => format!("a term in {}", f.symbol()),
         }
     }
@@ -159,6 +227,9 @@ impl Feature {
             Feature::TanPhi => tan,
             Feature::KappaV => v * v * tan,
             Feature::KappaV2 => v * v * v * tan,
+            Feature::PowerLimit {
+                specific_power_w_kg,
+            } => (u - specific_power_w_kg / v.max(POWER_LIMIT_MIN_SPEED_M_S)).max(0.0),
         }
     }
 
@@ -177,6 +248,15 @@ impl Feature {
             Feature::TanPhi => tan(),
             Feature::KappaV => v.clone() * v * tan(),
             Feature::KappaV2 => v.clone() * v.clone() * v * tan(),
+            Feature::PowerLimit {
+                specific_power_w_kg,
+            } => {
+                let limit = v
+                    .clamp_min(POWER_LIMIT_MIN_SPEED_M_S)
+                    .recip()
+                    .mul_scalar(specific_power_w_kg);
+                (u - limit).clamp_min(0.0)
+            }
         }
     }
 }
@@ -216,8 +296,8 @@ mod tests {
         Tensor::from_data(TensorData::new(vec![v as f32], [1, 1]), &device)
     }
 
-    /// One step of `dynamics` (limits off) from 12 m/s under (-2 m/s^2, 0.04 rad).
-    fn step(mut dynamics: Dynamics) -> VehicleState {
+    /// One step of `dynamics` (limits off) from 12 m/s under (`u` m/s^2, 0.04 rad).
+    fn step(mut dynamics: Dynamics, u: f64) -> VehicleState {
         dynamics.limits = None;
         dynamics.step(
             &VehicleState {
@@ -228,7 +308,7 @@ mod tests {
                 aux: Vec::new(),
             },
             &Controls {
-                accel: scalar(-2.0),
+                accel: scalar(u),
                 steer: scalar(0.04),
             },
             &scalar(2.8),
@@ -237,13 +317,28 @@ mod tests {
 
     #[test]
     fn tensor_and_host_features_agree_and_add_to_their_equation() {
-        let (v, u, phi) = (12.0, -2.0, 0.04);
-        let plain = step(Dynamics::bicycle(0.5));
-        for equation in [Equation::Speed, Equation::HeadingRate] {
-            for &feature in Feature::library(equation) {
-                let next = step(Dynamics::bicycle(0.5).with_term(Box::new(LibraryTerm {
-                    terms: vec![(equation, feature, scalar(0.1))],
-                })));
+        // A limit of 20 W/kg at 12 m/s is 1.67 m/s^2: below the throttle tried here.
+        let limit = Feature::PowerLimit {
+            specific_power_w_kg: 20.0,
+        };
+        assert!(limit.value(12.0, 2.0, 0.04) > 0.3);
+        for (equation, (v, u, phi)) in [
+            (Equation::Speed, (12.0, -2.0, 0.04)),
+            (Equation::Speed, (12.0, 2.0, 0.04)),
+            (Equation::HeadingRate, (12.0, -2.0, 0.04)),
+        ] {
+            let plain = step(Dynamics::bicycle(0.5), u);
+            let mut features = Feature::library(equation).to_vec();
+            if equation == Equation::Speed {
+                features.push(limit);
+            }
+            for feature in features {
+                let next = step(
+                    Dynamics::bicycle(0.5).with_term(Box::new(LibraryTerm {
+                        terms: vec![(equation, feature, scalar(0.1))],
+                    })),
+                    u,
+                );
                 let host =
                     |t: &Tensor<2>| t.to_data().convert::<f64>().try_to_vec::<f64>().unwrap()[0];
                 let expected = 0.1 * feature.value(v, u, phi) * 0.5;

@@ -100,12 +100,11 @@ pub fn discover(
             .filter(|f| !(commands_inferred && f.involves_commands()))
             .collect()
     };
-    let (speed, _) = select(
-        Equation::Speed,
-        &library(Equation::Speed),
-        &fit_set,
-        &check_set,
-    );
+    let mut speed_library = library(Equation::Speed);
+    if !commands_inferred && let Some(limit) = best_power_limit(&speed_library, &fit_set) {
+        speed_library.push(limit);
+    }
+    let (speed, _) = select(Equation::Speed, &speed_library, &fit_set, &check_set);
     let (heading, kappa) = select(
         Equation::HeadingRate,
         &library(Equation::HeadingRate),
@@ -161,6 +160,29 @@ fn samples(
         }
     }
     out
+}
+
+/// The power limit ([`Feature::PowerLimit`]) whose column, beside `library`'s, fits the speed
+/// residual of `train` best by least squares; none when no limit tried is exceeded by enough
+/// samples to estimate it. Its one parameter enters a term non-linearly, so it is chosen here
+/// by a search over [`Feature::power_limit_grid`] and the selection then treats the column
+/// like any other.
+fn best_power_limit(library: &[Feature], train: &[Sample]) -> Option<Feature> {
+    let (x, y) = design(Equation::Speed, library, train);
+    Feature::power_limit_grid()
+        .filter_map(|limit| {
+            let column: Vec<f64> = train.iter().map(|s| limit.value(s.v, s.u, s.phi)).collect();
+            if column.iter().filter(|c| **c > 0.0).count() < MIN_SAMPLES_PER_TERM {
+                return None;
+            }
+            let mut with = x.clone().insert_column(x.ncols(), 0.0);
+            with.set_column(x.ncols(), &DVector::from_vec(column));
+            let coef = stlsq(&with, &y, 0.0, 0);
+            let residual = (&y - &with * DVector::from_vec(coef)).norm_squared();
+            Some((residual, limit))
+        })
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+        .map(|(_, limit)| limit)
 }
 
 /// Nuisance columns ahead of the library: the heading equation's `v tan(phi)` (a wheelbase
@@ -324,6 +346,21 @@ mod tests {
     /// 400 samples over varied v and u on 4 tracks, with `residual(v, u, i)` as the speed
     /// residual; the speed equation selected with track 3 held out.
     fn select_speed(residual: impl Fn(f64, f64, usize) -> f64) -> EquationFit {
+        let (train, heldout) = speed_samples(residual);
+        let library = Feature::library(Equation::Speed);
+        select(Equation::Speed, library, &train, &heldout).0
+    }
+
+    /// [`select_speed`] with the best power limit added to the library, as [`discover`] does.
+    fn select_speed_with_limit(residual: impl Fn(f64, f64, usize) -> f64) -> EquationFit {
+        let (train, heldout) = speed_samples(residual);
+        let mut library = Feature::library(Equation::Speed).to_vec();
+        library.extend(best_power_limit(&library, &train));
+        select(Equation::Speed, &library, &train, &heldout).0
+    }
+
+    /// The training and held-out samples of [`select_speed`].
+    fn speed_samples(residual: impl Fn(f64, f64, usize) -> f64) -> (Vec<Sample>, Vec<Sample>) {
         let samples: Vec<Sample> = (0..400)
             .map(|i| {
                 let v = 2.0 + (i % 37) as f64;
@@ -338,10 +375,7 @@ mod tests {
                 }
             })
             .collect();
-        let (train, heldout): (Vec<Sample>, Vec<Sample>) =
-            samples.into_iter().partition(|s| s.track != 3);
-        let library = Feature::library(Equation::Speed);
-        select(Equation::Speed, library, &train, &heldout).0
+        samples.into_iter().partition(|s| s.track != 3)
     }
 
     /// Deterministic noise in [-0.5, 0.5) x `scale`.
@@ -362,6 +396,26 @@ mod tests {
     fn pure_noise_selects_nothing() {
         let fit = select_speed(|_, _, i| noise(i, 0.2));
         assert!(fit.terms.is_empty(), "{fit:?}");
+        let fit = select_speed_with_limit(|_, _, i| noise(i, 0.2));
+        assert!(fit.terms.is_empty(), "{fit:?}");
+    }
+
+    /// An acceleration capped at 20 / v: the limit is found within the grid's 5 % step and
+    /// selected alone, with the cap's coefficient -1.
+    #[test]
+    fn a_power_limit_is_found_with_its_limit_and_selected_alone() {
+        let fit = select_speed_with_limit(|v, u, i| -(u - 20.0 / v).max(0.0) + noise(i, 0.02));
+        let [(feature, coefficient)] = fit.terms[..] else {
+            panic!("one term expected: {fit:?}");
+        };
+        let Feature::PowerLimit {
+            specific_power_w_kg,
+        } = feature
+        else {
+            panic!("{feature:?}");
+        };
+        assert!((specific_power_w_kg / 20.0 - 1.0).abs() <= 0.05, "{fit:?}");
+        assert!((coefficient + 1.0).abs() <= 0.1, "{fit:?}");
     }
 
     #[test]

@@ -63,7 +63,7 @@ impl Candidate {
                 self.discovered
                     .iter()
                     .map(|&(_, feature, start)| ParamSpec {
-                        name: feature.symbol(),
+                        name: feature.name(),
                         unit: "",
                         min: start - 2.0 * start.abs(),
                         max: start + 2.0 * start.abs(),

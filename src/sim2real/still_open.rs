@@ -1,6 +1,6 @@
 //! The one line a report ends with when its final model stays above the noise floor: what
 //! was tried (the catalogue, discovery) and what it bought, and where the rest of the mismatch
-//! sits (the channel furthest above its floor, and the regime holding most of the excess),
+//! sits (the channels furthest above their floors, and the regime holding most of the excess),
 //! so a user knows what to look at next without reading the whole report.
 
 use super::report::Report;
@@ -16,15 +16,24 @@ pub fn line(report: &Report) -> Option<String> {
     } else {
         format!("kept: {}", report.final_model.model)
     };
-    let mut remains = match unexplained.channels.first() {
-        Some(c) => format!(
-            "the mismatch left is in the {} channel ({:.1}x its floor)",
-            c.channel, c.ratio
-        ),
-        None => format!(
+    // The two channels furthest above their floors (as the unexplained section lists them):
+    // a speed error soon shows in heading too, so the first alone can mislead.
+    let channels: Vec<String> = unexplained
+        .channels
+        .iter()
+        .take(2)
+        .map(|c| format!("{} ({:.1}x its floor)", c.channel, c.ratio))
+        .collect();
+    let mut remains = if channels.is_empty() {
+        format!(
             "the mismatch left is {:.1}x the noise floor",
             unexplained.ratio
-        ),
+        )
+    } else {
+        format!(
+            "the mismatch left is in the {} channels",
+            channels.join(" and ")
+        )
     };
     // The regime holding the largest share of the excess says best where to look.
     let largest = unexplained
@@ -66,7 +75,7 @@ fn catalogue_tried(report: &Report) -> String {
 /// through the rollout.
 fn discovery_tried(report: &Report) -> String {
     if !report.options.discover {
-        return "discovery not run (--catalogue-only)".into();
+        return "discovery kept out (--catalogue-only)".into();
     }
     let selected: Vec<String> = report
         .discovery
