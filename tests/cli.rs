@@ -1072,3 +1072,32 @@ fn policy_bytes(network: rtr::model::PolicyNetwork) -> Vec<u8> {
         .expect("parameters serialise")
         .to_vec()
 }
+
+/// A probe has no `--resume`: an earlier probe's run in a task's folder is refused by the
+/// `--out` flag, before the task trains, not with the trainer's advice to pass `--resume`.
+#[test]
+fn a_probe_into_an_earlier_probe_run_is_refused_by_its_out_folder() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let checkpoints = dir.path().join("brake").join("checkpoints");
+    std::fs::create_dir_all(&checkpoints).expect("folders");
+    std::fs::write(checkpoints.join("latest"), "iter-000001\n").expect("pointer");
+    let out = rtr(&[
+        "probe",
+        "ppo",
+        "--small",
+        "--tasks",
+        "brake",
+        "--iterations",
+        "1",
+        "--out",
+        dir.path().to_str().expect("utf-8 path"),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success()
+            && err.contains("--out")
+            && err.contains("probe run of `brake`")
+            && !err.contains("--resume"),
+        "{err}"
+    );
+}

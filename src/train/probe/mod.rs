@@ -162,6 +162,19 @@ pub fn run_probes(
     dataset: &A9Dataset,
     progress: &dyn Fn(&str),
 ) -> Result<Vec<TaskReport>> {
+    // A probe always trains afresh (it has no --resume): an earlier probe's run in a task's
+    // folder is refused before any work, by the flag the user can change.
+    for &task in tasks {
+        let (dir, _) = run_dir(task, settings);
+        if super::checkpoint::has_checkpoint(&dir) {
+            return Err(Error::InvalidArgument(format!(
+                "--out: {} already holds a probe run of `{}`; probes always start afresh, so \
+                 choose another --out folder or remove that one",
+                dir.display(),
+                task.name()
+            )));
+        }
+    }
     let stats = TrafficStatistics::from_recording(&dataset.recording, &dataset.map, 1.0);
     tasks
         .iter()
