@@ -171,9 +171,9 @@ fn a_full_stdout_does_not_cut_the_files_short() {
     }
 }
 
-/// An output path that is a device, a FIFO or a socket is refused, never replaced by a file
-/// (`--out /dev/null` must not take /dev/null from the system); one that is a link to a file
-/// writes the file and leaves the link a link.
+/// An output path that is a device, a FIFO or a socket is refused by what it is, never replaced
+/// by a file (`--out /dev/null` must not take /dev/null from the system); one that is a link
+/// to a file writes the file and leaves the link a link.
 #[test]
 fn an_output_that_is_not_a_file_is_refused_and_a_link_is_written_through() {
     let dir = tempfile::tempdir().expect("temp dir");
@@ -186,6 +186,16 @@ fn an_output_that_is_not_a_file_is_refused_and_a_link_is_written_through() {
     assert_refused(
         &["recordings", "generate", "--effect", "none", "--out", pipe],
         &["--out", "FIFO"],
+    );
+    // A folder output is named for what it is, and so is a non-folder on its way.
+    assert_refused(
+        &["scenarios", "generate", "--out", pipe],
+        &["--out", "is a FIFO", "expected a folder"],
+    );
+    let under = format!("{pipe}/sub");
+    assert_refused(
+        &["scenarios", "generate", "--out", &under],
+        &["--out", "is a FIFO", "nothing can be written under it"],
     );
     if Path::new("/dev/null").exists() {
         assert_refused(

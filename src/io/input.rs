@@ -86,7 +86,7 @@ pub fn check_input_file(path: &Path, flag: &str) -> Result<()> {
 pub fn check_input_folder(path: &Path, flag: &str, expected: &str) -> Result<()> {
     let why = match path.metadata() {
         Ok(m) if m.is_dir() => return Ok(()),
-        Ok(m) => format!("is {}", if m.is_file() { "a file" } else { kind_of(&m) }),
+        Ok(m) => format!("is {}", kind_of(&m)),
         Err(_) if path.symlink_metadata().is_ok() => "is a link to nothing".to_string(),
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => "does not exist".to_string(),
         Err(e) => format!("cannot be read ({e})"),
@@ -151,6 +151,9 @@ pub fn not_regular(path: &Path) -> Option<String> {
 pub(super) fn kind_of(metadata: &std::fs::Metadata) -> &'static str {
     if metadata.is_dir() {
         return "a folder";
+    }
+    if metadata.is_file() {
+        return "a file";
     }
     #[cfg(unix)]
     {

@@ -214,7 +214,10 @@ pub(super) fn check_output(path: &Path, kind: OutputKind, flag: &str) -> Result<
             ));
         }
         (Ok(m), OutputKind::Folder) if !m.is_dir() => {
-            return fail("is a file; expected a folder".into());
+            return fail(format!(
+                "is {}; expected a folder",
+                super::input::kind_of(&m)
+            ));
         }
         _ => {}
     }
@@ -232,10 +235,13 @@ pub(super) fn check_output(path: &Path, kind: OutputKind, flag: &str) -> Result<
     let Some(folder) = existing else {
         return fail("no part of the path exists".into());
     };
-    if !folder.is_dir() {
+    if let Ok(m) = folder.metadata()
+        && !m.is_dir()
+    {
         return fail(format!(
-            "{} is a file, so nothing can be written under it",
-            folder.display()
+            "{} is {}, so nothing can be written under it",
+            folder.display(),
+            super::input::kind_of(&m)
         ));
     }
     let probe = temp_name(folder, "probe", None);
