@@ -421,6 +421,14 @@ fn a_run_file_names_a_dynamics_file_relative_to_itself() {
             "expected a finite value",
         ),
         ("feature = \"u_squared\"\ncoefficient = 0.3", "u_squared"),
+        (
+            "feature = { power_limit = { specific_power_w_kg = -3.0 } }\ncoefficient = -1.0",
+            "specific_power_w_kg",
+        ),
+        (
+            "feature = { power_limit = { specific_power_w_kg = nan } }\ncoefficient = -1.0",
+            "expected a power over mass",
+        ),
     ] {
         std::fs::write(
             &path,
@@ -433,6 +441,14 @@ fn a_run_file_names_a_dynamics_file_relative_to_itself() {
             "{message}"
         );
     }
+    std::fs::write(
+        &path,
+        "[[discovered]]\nequation = \"heading_rate\"\ncoefficient = -1.0\n\
+         feature = { power_limit = { specific_power_w_kg = 20.0 } }\n",
+    )
+    .expect("written");
+    let message = DynamicsFile::load(&path).expect_err("heading").to_string();
+    assert!(message.contains("dtheta/dt library"), "{message}");
 }
 
 #[test]

@@ -221,13 +221,27 @@ impl DynamicsFile {
     pub fn validate(&self, source: &str) -> Result<()> {
         for (k, term) in self.discovered.iter().enumerate() {
             let place = format!("discovered[{k}]");
+            if let Feature::PowerLimit {
+                specific_power_w_kg,
+            } = term.feature
+                && !(specific_power_w_kg.is_finite() && specific_power_w_kg > 0.0)
+            {
+                return Err(Error::invalid(
+                    source,
+                    format!("{place}.feature.power_limit.specific_power_w_kg"),
+                    format!("{specific_power_w_kg}: expected a power over mass in W/kg, > 0"),
+                ));
+            }
             if !term.feature.is_in_library(term.equation) {
                 let mut names: Vec<String> = Feature::library(term.equation)
                     .iter()
                     .map(|f| f.symbol())
                     .collect();
                 if term.equation == Equation::Speed {
-                    names.push("max(u - p / v, 0) with p > 0 (power_limit)".into());
+                    names.push(
+                        "max(u - p / v, 0) (feature = { power_limit = { specific_power_w_kg = p } })"
+                            .into(),
+                    );
                 }
                 return Err(Error::invalid(
                     source,
