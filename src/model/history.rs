@@ -6,6 +6,7 @@ use burn::nn::{Gru, GruConfig, Linear, LinearConfig};
 use burn::prelude::*;
 use burn::tensor::activation::relu;
 
+use super::gru_last_state::gru_last_state;
 use super::rowwise::rowwise;
 
 /// A 1D convolution over time with "same" zero padding, `[batch, time, channels]` in and out,
@@ -89,8 +90,8 @@ impl HistoryEncoder {
         for block in &self.blocks {
             x = block.forward(x);
         }
-        let states = self.gru.forward(x, None);
-        let hidden = states.dims()[2];
-        states.narrow(1, h - 1, 1).reshape([b, n, hidden])
+        let last = gru_last_state(&self.gru, x);
+        let hidden = last.dims()[1];
+        last.reshape([b, n, hidden])
     }
 }

@@ -23,6 +23,7 @@ pub mod config;
 pub mod distribution;
 #[cfg(feature = "flex")]
 mod fused_max;
+mod gru_last_state;
 pub mod history;
 pub mod input;
 pub mod interaction;
