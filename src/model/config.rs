@@ -89,19 +89,31 @@ pub struct ModelConfig {
     /// value network is a direct saving; `None` (default): the policy's widths.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub value_hidden: Option<usize>,
+    /// Not in the paper: the value network's HeteroGNN rounds. The value only has to rank
+    /// states by return, not drive, so it can see less of the scene than the policy; each
+    /// round is about a quarter of a PPO agent-step's cost at hidden 64. `None` (default): the
+    /// policy's rounds.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub value_interaction_rounds: Option<usize>,
 }
 
 impl ModelConfig {
-    /// The value network's architecture: this one, at [`Self::value_hidden`]'s width if set.
+    /// The value network's architecture: this one, at [`Self::value_hidden`]'s width and with
+    /// [`Self::value_interaction_rounds`]' rounds where set.
     pub fn value_network(&self) -> ModelConfig {
-        match self.value_hidden {
-            Some(width) => ModelConfig {
-                hidden: width,
-                head_hidden: vec![width; self.head_hidden.len()],
-                value_hidden: None,
-                ..self.clone()
-            },
-            None => self.clone(),
+        let (hidden, head_hidden) = match self.value_hidden {
+            Some(width) => (width, vec![width; self.head_hidden.len()]),
+            None => (self.hidden, self.head_hidden.clone()),
+        };
+        ModelConfig {
+            hidden,
+            head_hidden,
+            interaction_rounds: self
+                .value_interaction_rounds
+                .unwrap_or(self.interaction_rounds),
+            value_hidden: None,
+            value_interaction_rounds: None,
+            ..self.clone()
         }
     }
 }
@@ -143,6 +155,7 @@ impl Default for ModelConfig {
             lane_speed_limit_input: true,
             lane_steer_feedforward: false,
             value_hidden: None,
+            value_interaction_rounds: None,
         }
     }
 }
@@ -207,6 +220,11 @@ impl ModelConfig {
             ("history_blocks", self.history_blocks, MAX_LAYERS),
             ("lane_layers", self.lane_layers, MAX_LAYERS),
             ("interaction_rounds", self.interaction_rounds, MAX_LAYERS),
+            (
+                "value_interaction_rounds",
+                self.value_interaction_rounds.unwrap_or(0),
+                MAX_LAYERS,
+            ),
         ];
         for (field, value, max) in bounded {
             if value > max {
@@ -225,6 +243,19 @@ impl ModelConfig {
                 format!(
                     "expected an odd kernel (the sequence keeps its length), got {}",
                     self.history_kernel
+                ),
+            );
+        }
+        if let Some(rounds) = self.value_interaction_rounds
+            && rounds > self.interaction_rounds
+        {
+            // The edges (and the lane crop the lane rounds update) are built once, for the
+            // policy's rounds, and shared by both networks.
+            return fail(
+                "value_interaction_rounds",
+                format!(
+                    "expected at most interaction_rounds ({}), got {rounds}",
+                    self.interaction_rounds
                 ),
             );
         }
@@ -367,6 +398,15 @@ mod tests {
                 .to_string();
             assert!(err.contains("value_hidden"), "{bad}: {err}");
         }
+        for bad in [
+            "value_interaction_rounds = 65\n",
+            "value_interaction_rounds = 3\ninteraction_rounds = 2\n",
+        ] {
+            let err = ModelConfig::from_toml_str(bad, "m.toml")
+                .unwrap_err()
+                .to_string();
+            assert!(err.contains("value_interaction_rounds"), "{bad}: {err}");
+        }
     }
 
     /// The value network's width replaces the hidden and decoder widths and nothing else, is
@@ -393,5 +433,28 @@ mod tests {
             ModelConfig::default().value_network(),
             ModelConfig::default()
         );
+    }
+
+    /// The value network's rounds replace its rounds and nothing else, the policy keeps its
+    /// own, and the setting is written only when set and reads back.
+    #[test]
+    fn value_rounds_change_only_the_value_network() {
+        let config =
+            ModelConfig::from_toml_str("value_interaction_rounds = 1\n", "m.toml").unwrap();
+        assert_eq!(config.interaction_rounds, 3);
+        let value = config.value_network();
+        assert_eq!(value.interaction_rounds, 1);
+        assert_eq!(
+            ModelConfig {
+                interaction_rounds: 3,
+                value_interaction_rounds: Some(1),
+                ..value
+            },
+            config
+        );
+        let text = toml::to_string(&config).unwrap();
+        assert_eq!(ModelConfig::from_toml_str(&text, "m.toml").unwrap(), config);
+        let default = toml::to_string(&ModelConfig::default()).unwrap();
+        assert!(!default.contains("value_interaction_rounds"), "{default}");
     }
 }

@@ -653,6 +653,35 @@ mod tests {
         }
     }
 
+    /// A value network with fewer rounds than the policy (`value_interaction_rounds`) reads the
+    /// edges built once for the policy's rounds (a larger lane crop, or one it does not use)
+    /// exactly as it reads edges built for its own rounds.
+    #[test]
+    fn fewer_value_rounds_read_the_policy_edges_exactly() {
+        let device = crate::backend::Backend::reference_device(true);
+        let batch = merge_batch(&device);
+        let frames = logged_frames(&batch, batch.history_steps);
+        for value_rounds in [1, 2] {
+            let config = ModelConfig {
+                interaction_rounds: 4,
+                value_interaction_rounds: Some(value_rounds),
+                ..narrow_config()
+            };
+            let own = config.value_network();
+            let value = ValueNetwork::new(&config, &device);
+            assert_eq!(value.config().interaction_rounds, value_rounds);
+            assert!(value.num_params() < ValueNetwork::new(&narrow_config(), &device).num_params());
+            // A policy of the value network's rounds, so that both runs are exact for it too.
+            let policy = PolicyNetwork::new(&own, &device);
+            let lanes = LaneInput::from_batch(&batch, &config);
+            let run = |inputs_for: &ModelConfig| {
+                let agents = AgentInput::from_frames(&batch, &frames, inputs_for);
+                outputs_and_gradients(&policy, &value, &agents, &lanes)
+            };
+            run(&config).assert_close(&run(&own), &format!("{value_rounds} value rounds"));
+        }
+    }
+
     /// A policy's and a value network's outputs on some agents, and their parameters'
     /// gradients of a loss that reads every output.
     struct OutputsAndGradients {
