@@ -187,13 +187,18 @@ impl ModelConfig {
 
     /// Checks every size and range; `source_name` names the config in errors.
     pub fn validate(&self, source_name: &str) -> Result<()> {
-        let fail = |field: &str, message: String| {
-            Err(Error::invalid(
+        match self.size_problem().or_else(|| self.scale_problem()) {
+            Some((field, message)) => Err(Error::invalid(
                 source_name,
                 format!("model config field `{field}`"),
                 message,
-            ))
-        };
+            )),
+            None => Ok(()),
+        }
+    }
+
+    /// The first width, count or layer number out of range, as (field, what was expected).
+    fn size_problem(&self) -> Option<(&'static str, String)> {
         let positive = [
             ("hidden", self.hidden),
             ("value_hidden", self.value_hidden.unwrap_or(self.hidden)),
@@ -204,7 +209,7 @@ impl ModelConfig {
         ];
         for (field, value) in positive {
             if value == 0 {
-                return fail(field, "expected a positive integer, got 0".into());
+                return Some((field, "expected a positive integer, got 0".into()));
             }
         }
         // Catches typos (an extra zero) before they become a multi-gigabyte allocation.
@@ -228,99 +233,104 @@ impl ModelConfig {
         ];
         for (field, value, max) in bounded {
             if value > max {
-                return fail(field, format!("expected at most {max}, got {value}"));
+                return Some((field, format!("expected at most {max}, got {value}")));
             }
         }
         if let Some(w) = self.head_hidden.iter().find(|&&w| w > MAX_WIDTH) {
-            return fail(
+            return Some((
                 "head_hidden",
                 format!("expected widths of at most {MAX_WIDTH}, got {w}"),
-            );
+            ));
         }
         if self.history_kernel.is_multiple_of(2) {
-            return fail(
+            return Some((
                 "history_kernel",
                 format!(
                     "expected an odd kernel (the sequence keeps its length), got {}",
                     self.history_kernel
                 ),
-            );
+            ));
         }
         if let Some(rounds) = self.value_interaction_rounds
             && rounds > self.interaction_rounds
         {
             // The edges (and the lane crop the lane rounds update) are built once, for the
             // policy's rounds, and shared by both networks.
-            return fail(
+            return Some((
                 "value_interaction_rounds",
                 format!(
                     "expected at most interaction_rounds ({}), got {rounds}",
                     self.interaction_rounds
                 ),
-            );
+            ));
         }
         if self.head_hidden.contains(&0) {
-            return fail("head_hidden", "expected positive widths".into());
+            return Some(("head_hidden", "expected positive widths".into()));
         }
+        None
+    }
+
+    /// The first scale or range out of bounds, as (field, what was expected).
+    fn scale_problem(&self) -> Option<(&'static str, String)> {
         if !(self.lane_agent_radius.is_finite() && self.lane_agent_radius > 0.0) {
-            return fail(
+            return Some((
                 "lane_agent_radius",
                 format!("expected metres > 0, got {}", self.lane_agent_radius),
-            );
+            ));
         }
         if self
             .distance_wavelengths
             .iter()
             .any(|w| !(w.is_finite() && *w > 0.0))
         {
-            return fail(
+            return Some((
                 "distance_wavelengths",
                 "expected finite wavelengths > 0 (m)".into(),
-            );
+            ));
         }
         if self
             .action_scale
             .iter()
             .any(|s| !(s.is_finite() && *s > 0.0))
         {
-            return fail(
+            return Some((
                 "action_scale",
                 format!("expected two scales > 0, got {:?}", self.action_scale),
-            );
+            ));
         }
         if !(self.lane_curvature_scale.is_finite() && self.lane_curvature_scale > 0.0) {
-            return fail(
+            return Some((
                 "lane_curvature_scale",
                 format!(
                     "expected a finite scale > 0 (m), got {}",
                     self.lane_curvature_scale
                 ),
-            );
+            ));
         }
         if !(self.agent_edge_motion_gain.is_finite() && self.agent_edge_motion_gain > 0.0) {
-            return fail(
+            return Some((
                 "agent_edge_motion_gain",
                 format!(
                     "expected a finite factor > 0, got {}",
                     self.agent_edge_motion_gain
                 ),
-            );
+            ));
         }
         if self.agent_edge_motion_gain != 1.0 && !self.agent_edge_motion {
-            return fail(
+            return Some((
                 "agent_edge_motion_gain",
                 "scales the relative-motion inputs: it needs agent_edge_motion = true".into(),
-            );
+            ));
         }
         let [lo, hi] = self.log_std_range;
         // exp(5) = 148 action scales is already no action; below exp(-20) sigma underflows f32.
         if !(lo >= -20.0 && hi <= 5.0 && lo < hi) {
-            return fail(
+            return Some((
                 "log_std_range",
                 format!("expected [low, high] with -20 <= low < high <= 5, got [{lo}, {hi}]"),
-            );
+            ));
         }
-        Ok(())
+        None
     }
 }
 
