@@ -435,10 +435,7 @@ mod tests {
             },
             config
         );
-        let text = toml::to_string(&config).unwrap();
-        assert_eq!(ModelConfig::from_toml_str(&text, "m.toml").unwrap(), config);
-        let default = toml::to_string(&ModelConfig::default()).unwrap();
-        assert!(!default.contains("value_hidden"), "{default}");
+        assert_round_trip_written_only_when_set(&config, "value_hidden");
         assert_eq!(
             ModelConfig::default().value_network(),
             ModelConfig::default()
@@ -462,9 +459,18 @@ mod tests {
             },
             config
         );
-        let text = toml::to_string(&config).unwrap();
-        assert_eq!(ModelConfig::from_toml_str(&text, "m.toml").unwrap(), config);
+        assert_round_trip_written_only_when_set(&config, "value_interaction_rounds");
+    }
+
+    /// `config` reads back from the TOML it writes, and the default config does not write
+    /// `field` (so run files and checkpoints without it keep meaning the paper's network).
+    fn assert_round_trip_written_only_when_set(config: &ModelConfig, field: &str) {
+        let text = toml::to_string(config).unwrap();
+        assert_eq!(
+            &ModelConfig::from_toml_str(&text, "m.toml").unwrap(),
+            config
+        );
         let default = toml::to_string(&ModelConfig::default()).unwrap();
-        assert!(!default.contains("value_interaction_rounds"), "{default}");
+        assert!(!default.contains(field), "{default}");
     }
 }

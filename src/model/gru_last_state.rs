@@ -31,7 +31,7 @@ pub fn gru_last_state(gru: &Gru, x: Tensor<3>) -> Tensor<2> {
     )
     .reshape([batch, time, 3 * c]);
     let hidden_weights = stacked_weights(gates.map(|g| &g.hidden_transform));
-    let hidden_biases = stacked_biases(gates.map(|g| &g.hidden_transform), batch);
+    let hidden_biases = stacked_biases(gates.map(|g| &g.hidden_transform));
 
     let mut state: Option<Tensor<2>> = None;
     for t in 0..time {
@@ -39,6 +39,7 @@ pub fn gru_last_state(gru: &Gru, x: Tensor<3>) -> Tensor<2> {
             .clone()
             .narrow(1, t, 1)
             .reshape([batch, 3 * c]);
+        // `[batch, 3 hidden]`, or `[1, 3 hidden]` (broadcast) while the state is zero.
         let from_state = match &state {
             Some(h) => h.clone().matmul(hidden_weights.clone()) + hidden_biases.clone(),
             None => hidden_biases.clone(),
@@ -59,8 +60,7 @@ pub fn gru_last_state(gru: &Gru, x: Tensor<3>) -> Tensor<2> {
 
 /// `x W + b` for the three gates at once: `[rows, 3 hidden]`, gates side by side.
 fn stacked_product(layers: [&Linear; 3], x: Tensor<2>) -> Tensor<2> {
-    let rows = x.dims()[0];
-    x.matmul(stacked_weights(layers)) + stacked_biases(layers, rows)
+    x.matmul(stacked_weights(layers)) + stacked_biases(layers)
 }
 
 /// The layers' weights side by side, `[inputs, 3 hidden]`.
@@ -68,15 +68,15 @@ fn stacked_weights(layers: [&Linear; 3]) -> Tensor<2> {
     Tensor::cat(layers.map(|l| l.weight.val()).to_vec(), 1)
 }
 
-/// The layers' biases side by side (zero where a layer has none), repeated over `rows`.
-fn stacked_biases(layers: [&Linear; 3], rows: usize) -> Tensor<2> {
+/// The layers' biases side by side (zero where a layer has none), `[1, 3 hidden]` to broadcast
+/// over rows.
+fn stacked_biases(layers: [&Linear; 3]) -> Tensor<2> {
     let bias = |l: &Linear| match &l.bias {
         Some(b) => b.val(),
         None => Tensor::zeros([l.weight.dims()[1]], &l.weight.device()),
     };
     let biases = Tensor::cat(layers.map(bias).to_vec(), 0);
-    let width = biases.dims()[0];
-    biases.reshape([1, width]).expand([rows, width])
+    biases.unsqueeze()
 }
 
 #[cfg(test)]
