@@ -465,3 +465,56 @@ fn a_track_recorded_twice_under_two_ids_is_refused() {
     Recordings::parse("rec.csv", &format!("{HEADER}\n{}{other}", track("a", 0.0)))
         .expect("two tracks");
 }
+
+/// A braking track of 60 samples (10 s at 6 Hz): 20 m/s, braking at 3 m/s^2 from `brake_s`
+/// for 2 s. `jitter` scales a fixed pseudo-random pattern added to positions (m), speeds
+/// (m/s) and headings (rad / 10).
+fn braking_track(id: &str, t0: f64, brake_s: f64, y: f64, jitter: f64) -> String {
+    let dt = 1.0 / 6.0;
+    let (mut x, mut v) = (0.0, 20.0);
+    let mut out = String::new();
+    for k in 0..60 {
+        let t = k as f64 * dt;
+        let accel = if (brake_s..brake_s + 2.0).contains(&t) {
+            -3.0
+        } else {
+            0.0
+        };
+        // A pattern without a trend: sines at incommensurate rates.
+        let noise = |phase: f64| jitter * (k as f64 * 2.7 + phase).sin();
+        out.push_str(&format!(
+            "{id},{:.4},{:.4},{:.4},{:.5},{:.4},{accel},0\n",
+            t0 + t,
+            x + noise(0.0),
+            y + noise(1.3),
+            noise(2.1) / 10.0,
+            v + noise(0.7),
+        ));
+        x += v * dt;
+        v += accel * dt;
+    }
+    out
+}
+
+#[test]
+fn a_track_copied_with_noise_added_is_refused_and_two_drives_are_not() {
+    let original = braking_track("a", 0.0, 3.0, 0.0, 0.0);
+    // The copy with 5 cm of noise on positions and speeds, elsewhere and at another time.
+    let copy = braking_track("b", 40.0, 3.0, 3.5, 0.05);
+    let message = error(&format!("{HEADER}\n{original}{copy}"));
+    assert_contains(
+        &message,
+        &["track_id b", "same track as track_id a", "noise added"],
+    );
+    // The same braking a second later is another drive, noise or not.
+    let later = braking_track("c", 40.0, 4.0, 3.5, 0.05);
+    Recordings::parse("rec.csv", &format!("{HEADER}\n{original}{later}")).expect("two drives");
+    // Two vehicles cruising side by side (no manoeuvre), each with its own noise, are two.
+    let cruise = |id: &str, y: f64, jitter: f64| braking_track(id, 0.0, 99.0, y, jitter);
+    let pair = format!(
+        "{HEADER}\n{}{}",
+        cruise("d", 0.0, 0.03),
+        cruise("e", 3.5, -0.03)
+    );
+    Recordings::parse("rec.csv", &pair).expect("two cruising vehicles");
+}

@@ -106,19 +106,23 @@ fn loss_falls_with(method: &str, top: &str, sections: &str, edit: impl Fn(&mut T
     );
 }
 
+/// Writes a dynamics file of one acceleration lag of `tau` seconds.
+fn write_lag(path: &Path, tau: f64) {
+    let text = format!("[[terms]]\neffect = \"accel_lag\"\nparams = {{ tau_s = {tau} }}\n");
+    std::fs::write(path, text).expect("dynamics file written");
+}
+
 #[test]
 fn a_resume_after_an_input_file_changed_is_refused_naming_it() {
     let dir = tempfile::tempdir().expect("temp dir");
     let dynamics = dir.path().join("dynamics.toml");
-    let lag =
-        |tau: f64| format!("[[terms]]\neffect = \"accel_lag\"\nparams = {{ tau_s = {tau} }}\n");
-    std::fs::write(&dynamics, lag(0.4)).expect("written");
+    write_lag(&dynamics, 0.4);
     let mut config = tiny("IL", "", "");
     config.optimizer.epochs = 3;
     config.dynamics = Some(dynamics.clone());
     let run = dir.path().join("run");
     train(config.clone(), &run, false, Some(1));
-    std::fs::write(&dynamics, lag(0.6)).expect("rewritten");
+    write_lag(&dynamics, 0.6);
     let devices = devices(&config).expect("devices");
     let err = Trainer::new(config.clone(), data(), devices, &run, true)
         .err()
@@ -128,9 +132,49 @@ fn a_resume_after_an_input_file_changed_is_refused_naming_it() {
         message.contains("dynamics") && message.contains("other contents"),
         "{message}"
     );
-    std::fs::write(&dynamics, lag(0.4)).expect("restored");
+    write_lag(&dynamics, 0.4);
     let rows = train(config, &run, true, None);
     assert_eq!(rows.len(), 3, "restored, the run resumes");
+}
+
+#[test]
+fn evaluating_a_run_refuses_a_config_or_dynamics_file_changed_since_it_trained() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let dynamics = dir.path().join("dynamics.toml");
+    write_lag(&dynamics, 0.4);
+    let mut config = tiny("IL", "", "");
+    config.dynamics = Some(dynamics.clone());
+    let run = dir.path().join("run");
+    train(config, &run, false, None);
+    let device = rtr::backend::Backend::reference_device(false);
+    let load = |path: &Path| rtr::eval::TrainedPolicy::load(path, &device).map(|_| ());
+    let newest = run.join("checkpoints/iter-000001");
+    for target in [run.as_path(), newest.as_path()] {
+        load(target).expect("the run as trained loads");
+    }
+
+    write_lag(&dynamics, 0.6);
+    for target in [run.as_path(), newest.as_path()] {
+        let message = load(target).expect_err("other physics").to_string();
+        assert!(
+            message.contains("dynamics.toml") && message.contains("other contents"),
+            "{message}"
+        );
+    }
+    write_lag(&dynamics, 0.4);
+
+    let config_toml = run.join("config.toml");
+    let text = std::fs::read_to_string(&config_toml).expect("config.toml");
+    let edited = text.replace("seed = 11", "seed = 12");
+    assert_ne!(edited, text, "the run's config.toml names its seed");
+    std::fs::write(&config_toml, edited).expect("edited");
+    for target in [run.as_path(), newest.as_path()] {
+        let message = load(target).expect_err("another config").to_string();
+        assert!(
+            message.contains("config.toml") && message.contains("seed"),
+            "{message}"
+        );
+    }
 }
 
 #[test]
@@ -375,10 +419,15 @@ fn rtr_scene_level_ppo_lowers_its_loss() {
 /// in every test: drawn and saved under the trainer's lock on the device RNG, so tests running
 /// in parallel cannot interleave their draws with it.
 fn reference_policy(dir: &Path) -> String {
+    saved_policy(dir, "reference.bpk", 99)
+}
+
+/// A tiny policy drawn with `seed`, saved as `dir/name`.
+fn saved_policy(dir: &Path, name: &str, seed: u64) -> String {
     let config = tiny("IL", "", "");
     let device = rtr::backend::Backend::reference_device(false);
-    let path = dir.join("reference.bpk");
-    rtr::seeding::with_seeded_device(&device, 99, || {
+    let path = dir.join(name);
+    rtr::seeding::with_seeded_device(&device, seed, || {
         rtr::model::PolicyNetwork::new(&config.model, &device).save_file(&path)
     })
     .expect("save reference");
@@ -465,6 +514,21 @@ fn the_warm_start_as_reference_starts_at_zero_kl_and_resumes() {
         if scale == 0.0 {
             let parts = dir.path().join("parts");
             train(config(), &parts, false, Some(1));
+            // Every resume rebuilds the reference from the warm start: another file there
+            // would be another reference mid-run.
+            let kept = std::fs::read(&warm).expect("warm start");
+            let other = saved_policy(dir.path(), "other.bpk", 7);
+            std::fs::copy(&other, &warm).expect("replaced");
+            let devices = devices(&config()).expect("devices");
+            let message = Trainer::new(config(), data(), devices, &parts, true)
+                .err()
+                .expect("a replaced reference is refused")
+                .to_string();
+            assert!(
+                message.contains("reference.init") && message.contains("other contents"),
+                "{message}"
+            );
+            std::fs::write(&warm, kept).expect("restored");
             let resumed = train(config(), &parts, true, None);
             assert_eq!(without_time(&resumed), without_time(&whole));
         }

@@ -4,13 +4,15 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::data::automatum::sha256_hex;
 use crate::error::{Error, Result};
 use crate::model::PolicyNetwork;
 use crate::sim::Dynamics;
-use crate::train::{TrainConfig, load_policy};
+use crate::train::{LoopState, TrainConfig, load_policy};
 
 const POLICY: &str = "policy.bpk";
 const CONFIG: &str = "config.toml";
+const STATE: &str = "state.json";
 
 pub struct TrainedPolicy {
     /// The method's table name (from the run's config).
@@ -77,9 +79,16 @@ impl TrainedPolicy {
         let (policy_path, config_path) = locate(path)?;
         let text = crate::io::read_text(&config_path, crate::io::Format::Settings)?;
         let mut config = TrainConfig::from_toml_str(&text, &config_path.display().to_string())?;
+        let recorded = recorded_state(&policy_path, &config_path)?;
+        if let Some((dir, state)) = &recorded {
+            check_recorded_config(dir, state, &config, &config_path)?;
+        }
         // Evaluation needs neither the frozen KL reference nor the training data.
         config.reference = None;
         config.dynamics = resolve_dynamics(config.dynamics.take(), &config_path)?;
+        if let (Some((dir, state)), Some(dynamics)) = (&recorded, &config.dynamics) {
+            check_recorded_dynamics(dir, state, dynamics)?;
+        }
         let network = load_policy(&policy_path, &config.model, device)?;
         let dynamics = config.dynamics(device)?;
         Ok(Self {
@@ -91,6 +100,74 @@ impl TrainedPolicy {
             dynamics,
         })
     }
+}
+
+/// The checkpoint that recorded how `policy` was trained: the checkpoint folder holding it, or
+/// the newest checkpoint of the run folder holding the finished policy. `None` for a folder
+/// without checkpoints (`models/<method>/`), where `config.toml` is all there is.
+fn recorded_state(policy: &Path, config_path: &Path) -> Result<Option<(PathBuf, LoopState)>> {
+    let folder = policy.parent().unwrap_or(Path::new("."));
+    let dir = if folder.join(STATE).is_file() {
+        Some(folder.to_path_buf())
+    } else {
+        crate::train::checkpoint::latest(config_path.parent().unwrap_or(Path::new(".")))?
+    };
+    match dir {
+        Some(dir) => {
+            let state = crate::train::checkpoint::read_state(&dir)?;
+            Ok(Some((dir, state)))
+        }
+        None => Ok(None),
+    }
+}
+
+/// Refuses a run's `config.toml` that says other than the config its checkpoint recorded in
+/// `state.json` (hand-edited, or copied from another run): the policy would be evaluated
+/// under settings (limits, physics, model options) it was not trained with.
+fn check_recorded_config(
+    dir: &Path,
+    state: &LoopState,
+    config: &TrainConfig,
+    config_path: &Path,
+) -> Result<()> {
+    let origin = dir.join(STATE).display().to_string();
+    let recorded = TrainConfig::from_toml_str(&state.config_toml, &origin)?;
+    match recorded.identity_difference(config)? {
+        None => Ok(()),
+        Some(difference) => Err(Error::invalid(
+            config_path.display().to_string(),
+            "config",
+            format!(
+                "differs from the config {origin} recorded when the policy was trained \
+                 ({difference}); the policy would be evaluated under other settings. Restore \
+                 the run's config.toml"
+            ),
+        )),
+    }
+}
+
+/// Refuses a dynamics file whose contents changed since the run that trained the policy read
+/// it: the same path with other physics.
+fn check_recorded_dynamics(dir: &Path, state: &LoopState, dynamics: &Path) -> Result<()> {
+    let Some(then) = crate::train::identity::recorded_dynamics_digest(&state.input_digests) else {
+        return Ok(());
+    };
+    let bytes = crate::io::read_bytes(dynamics, crate::io::Format::Settings)?;
+    let now = sha256_hex(&bytes);
+    if now == then {
+        return Ok(());
+    }
+    Err(Error::invalid(
+        dynamics.display().to_string(),
+        "dynamics",
+        format!(
+            "has other contents than when the policy in {} was trained (sha256 {} then, {} \
+             now); the policy would be evaluated under other physics. Restore the file",
+            dir.display(),
+            &then[..12],
+            &now[..12]
+        ),
+    ))
 }
 
 /// The dynamics file a run's `config.toml` names: as written if it exists (absolute, or

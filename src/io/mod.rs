@@ -33,10 +33,11 @@ pub fn parse_toml<T: serde::de::DeserializeOwned>(text: &str, source_name: &str)
             .span()
             .map(|span| line_column(text, span.start))
             .unwrap_or((0, 0));
-        let mut message = e.message().to_string();
-        if let Some(hint) = table_kind_hint::<T>(text, line) {
-            // serde's own words describe the misread, not the mistake.
-            message = hint;
+        let (mut line, mut column) = (line, column);
+        let mut message = plain_words(e.message());
+        if let Some((header_line, hint)) = table_kind_hint::<T>(text, line) {
+            // serde's own words describe the misread, not the mistake, which is the header.
+            (line, column, message) = (header_line, 1, hint);
         } else if message.starts_with("duplicate key")
             && let Some(span) = e.span()
         {
@@ -56,14 +57,19 @@ pub fn parse_toml<T: serde::de::DeserializeOwned>(text: &str, source_name: &str)
 /// wrong way round, serde reads one as the other and complains about something unrelated.
 /// When the error at `line` lies under such a header written once, and with the other
 /// bracketing the document gets past that line (parses, or fails only further down), say so.
-fn table_kind_hint<T: serde::de::DeserializeOwned>(text: &str, line: usize) -> Option<String> {
+/// Returns the header's 1-based line with the hint.
+fn table_kind_hint<T: serde::de::DeserializeOwned>(
+    text: &str,
+    line: usize,
+) -> Option<(usize, String)> {
     let lines: Vec<&str> = text.lines().collect();
-    let header = lines
+    let (index, header) = lines
         .get(..line.min(lines.len()))?
         .iter()
+        .enumerate()
         .rev()
-        .map(|l| l.trim())
-        .find(|l| l.starts_with('['))?;
+        .map(|(i, l)| (i, l.trim()))
+        .find(|(_, l)| l.starts_with('['))?;
     let (name, other, what) = match header.strip_prefix("[[").and_then(|h| h.strip_suffix("]]")) {
         Some(name) => (
             name.trim(),
@@ -96,7 +102,45 @@ fn table_kind_hint<T: serde::de::DeserializeOwned>(text: &str, line: usize) -> O
             .span()
             .is_some_and(|span| line_column(&rewritten, span.start).0 > line),
     };
-    past.then(|| format!("`{header}` makes `{name}` {what}: write `{other}`"))
+    past.then(|| {
+        (
+            index + 1,
+            format!("`{header}` makes `{name}` {what}: write `{other}`"),
+        )
+    })
+}
+
+/// serde's names for Rust types ("invalid type: string \"x\", expected usize") in the words
+/// of the file's format, so a message says what to write rather than how it is stored.
+fn plain_words(message: &str) -> String {
+    let mut text = message.replacen("invalid type: ", "found ", 1);
+    for (rust, plain) in [
+        ("expected usize", "expected a whole number >= 0"),
+        ("expected u64", "expected a whole number >= 0"),
+        ("expected u32", "expected a whole number >= 0"),
+        ("expected u8", "expected a whole number from 0 to 255"),
+        ("expected i64", "expected a whole number"),
+        ("expected i32", "expected a whole number"),
+        ("expected f64", "expected a number"),
+        ("expected f32", "expected a number"),
+        ("expected a sequence", "expected a list [ ... ]"),
+        ("expected a map", "expected a table"),
+        ("found map", "found a table"),
+        ("found sequence", "found a list"),
+        (
+            "wanted string or table",
+            "expected one of its names, as a quoted string",
+        ),
+        ("expected an array of length", "expected a list of length"),
+    ] {
+        text = text.replace(rust, plain);
+    }
+    // "expected struct RunConfig": the section's own name is in the line the error points at.
+    if let Some(at) = text.find("expected struct ") {
+        text.truncate(at);
+        text.push_str("expected a table");
+    }
+    text
 }
 
 /// 1-based line and column of byte `offset` in `text`.
@@ -155,13 +199,41 @@ mod tests {
 
     #[test]
     fn a_section_written_as_a_list_of_tables_is_named_as_such() {
-        let err = parse_toml::<File>("[[run]]\ncheckpoint_every = 2\n", "run.toml")
+        let err = parse_toml::<File>("\n[[run]]\ncheckpoint_every = 2\n", "run.toml")
             .expect_err("a list where one section belongs");
         assert!(err.to_string().contains("write `[run]`"), "{err}");
+        assert!(
+            err.to_string().contains("line 2, column 1"),
+            "the header's line: {err}"
+        );
         // A real list with a wrong value inside gets serde's message alone.
         let err = parse_toml::<File>("[[clips]]\npath = \"a\"\nweight = \"x\"\n", "run.toml")
             .expect_err("a string weight");
         assert!(!err.to_string().contains("write `["), "{err}");
         assert!(err.to_string().contains("line 3"), "{err}");
+    }
+
+    #[test]
+    fn wrong_value_types_are_named_in_the_file_format_words() {
+        let cases = [
+            (
+                "[run]\ncheckpoint_every = \"x\"\n",
+                "expected a whole number >= 0",
+            ),
+            (
+                "[[clips]]\npath = \"a\"\nweight = \"x\"\n",
+                "expected a number",
+            ),
+            ("clips = 3\n", "expected a list [ ... ]"),
+            ("run = 3\n", "expected a table"),
+        ];
+        for (text, words) in cases {
+            let err = parse_toml::<File>(text, "run.toml").expect_err(text);
+            let message = err.to_string();
+            assert!(message.contains(words), "{text:?}: {message}");
+            for rust in ["usize", "f64", "sequence", "struct "] {
+                assert!(!message.contains(rust), "{text:?}: {message}");
+            }
+        }
     }
 }

@@ -18,6 +18,7 @@ mod procedural_ramps;
 mod query;
 mod raster;
 mod reference_line;
+mod shape_checks;
 mod topology;
 mod topology_checks;
 mod xodr_parse;

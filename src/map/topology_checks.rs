@@ -1,10 +1,11 @@
 //! The road and lane topology of a parsed OpenDRIVE document, checked before it becomes a
-//! map: linked road ends meet, every linked lane exists, no lane is wider than the radius it
-//! bends around, and no reference line crosses itself. Each would otherwise give a map that
-//! loads and is wrong (a car driving on through a gap or a fold, a link dropped in silence).
-//! A problem names its element; the parser turns that into the element's line.
+//! map: linked road ends meet and carry the direction of travel on, every junction connects
+//! something, every linked lane exists and joins edge to edge; then each road's shape
+//! ([`super::shape_checks`]). Each would otherwise give a map that loads and is wrong (a car
+//! driving on through a gap, a link dropped in silence). A problem names its element; the
+//! parser turns that into the element's line.
 
-use super::lateral::{for_each_span, section_end, section_index};
+use super::lateral::{for_each_span, section_index};
 use super::opendrive::{Connection, ContactPoint, ElementType, Junction, OpenDrive, Road};
 use super::reference_line::eval_road;
 
@@ -13,7 +14,7 @@ use super::reference_line::eval_road;
 pub(super) const LINK_TOLERANCE: f64 = 0.1;
 
 /// Spacing (m) of the samples along a reference line that the bend and crossing checks use.
-const CHECK_SPACING: f64 = 0.5;
+pub(super) const CHECK_SPACING: f64 = 0.5;
 
 /// The element a problem is about.
 #[derive(Debug, Clone, PartialEq)]
@@ -34,6 +35,7 @@ pub(super) enum Place {
         junction: String,
         id: String,
     },
+    Junction(String),
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -46,12 +48,13 @@ pub(super) struct Problem {
 pub(super) fn check(od: &OpenDrive) -> Option<Problem> {
     ids_are_unique(od)
         .or_else(|| references_exist(od))
+        .or_else(|| junctions_connect(od))
         .or_else(|| links_meet(od))
+        .or_else(|| links_keep_direction(od))
         .or_else(|| connections_meet(od))
         .or_else(|| linked_lanes_exist(od))
         .or_else(|| linked_lane_edges_meet(od))
-        .or_else(|| lanes_fit_their_bends(od))
-        .or_else(|| reference_lines_do_not_cross(od))
+        .or_else(|| super::shape_checks::check(od))
 }
 
 /// No two roads, and no two junctions, share an id: a link to it would name either.
@@ -141,7 +144,7 @@ fn end_point(road: &Road, end: ContactPoint) -> [f64; 2] {
     [p.x, p.y]
 }
 
-fn distance(a: [f64; 2], b: [f64; 2]) -> f64 {
+pub(super) fn distance(a: [f64; 2], b: [f64; 2]) -> f64 {
     (a[0] - b[0]).hypot(a[1] - b[1])
 }
 
@@ -153,6 +156,11 @@ fn end_cross_section(road: &Road, end: ContactPoint) -> [[f64; 2]; 2] {
     } else {
         road.length
     };
+    cross_section(road, s)
+}
+
+/// The segment across `road` at `s` from its rightmost to its leftmost lane boundary.
+pub(super) fn cross_section(road: &Road, s: f64) -> [[f64; 2]; 2] {
     let section = &road.lane_sections[section_index(road, s)];
     let (mut lo, mut hi) = (0.0f64, 0.0f64);
     for_each_span(road, section, s, |_, span| {
@@ -164,7 +172,7 @@ fn end_cross_section(road: &Road, end: ContactPoint) -> [[f64; 2]; 2] {
 }
 
 /// Distance from `p` to the segment `ab`.
-fn to_segment(p: [f64; 2], [a, b]: [[f64; 2]; 2]) -> f64 {
+pub(super) fn to_segment(p: [f64; 2], [a, b]: [[f64; 2]; 2]) -> f64 {
     let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
     let length2 = dx * dx + dy * dy;
     let u = if length2 > 0.0 {
@@ -184,46 +192,138 @@ fn end_gap(a: &Road, a_end: ContactPoint, b: &Road, b_end: ContactPoint) -> f64 
     onto_b.min(onto_a)
 }
 
+/// A road's link to another road: the road, its linked end, the link's tag, the other road
+/// and the other's end it joins.
+struct LinkedEnds<'a> {
+    road: &'a Road,
+    own_end: ContactPoint,
+    which: &'static str,
+    other: &'a Road,
+    contact: ContactPoint,
+}
+
+impl LinkedEnds<'_> {
+    /// A problem at this link's element, its message led by which ends it joins.
+    fn problem(&self, finding: String) -> Problem {
+        Problem {
+            place: Place::Link {
+                road: self.road.id.clone(),
+                which: self.which,
+            },
+            message: format!(
+                "road {} links its {} to the {} of road {}, but {finding}",
+                self.road.id,
+                end_name(self.own_end),
+                end_name(self.contact),
+                self.other.id
+            ),
+        }
+    }
+}
+
+/// Every road-to-road link whose other road exists ([`references_exist`] reports the rest).
+fn road_links(od: &OpenDrive) -> impl Iterator<Item = LinkedEnds<'_>> {
+    od.roads.iter().flat_map(move |road| {
+        [
+            (&road.predecessor, ContactPoint::Start, "predecessor"),
+            (&road.successor, ContactPoint::End, "successor"),
+        ]
+        .into_iter()
+        .filter_map(move |(link, own_end, which)| {
+            let link = link
+                .as_ref()
+                .filter(|l| l.element_type == ElementType::Road)?;
+            Some(LinkedEnds {
+                road,
+                own_end,
+                which,
+                other: od.road(&link.element_id)?,
+                contact: link.contact_point.unwrap_or(ContactPoint::Start),
+            })
+        })
+    })
+}
+
 /// A road linked to a road touches it at the linked end (a road that is its own successor
 /// must close on itself).
 fn links_meet(od: &OpenDrive) -> Option<Problem> {
-    for road in &od.roads {
-        let links = [
-            (&road.predecessor, ContactPoint::Start, "predecessor"),
-            (&road.successor, ContactPoint::End, "successor"),
-        ];
-        for (link, own_end, which) in links {
-            let Some(link) = link
-                .as_ref()
-                .filter(|l| l.element_type == ElementType::Road)
-            else {
-                continue;
-            };
-            let Some(other) = od.road(&link.element_id) else {
-                continue;
-            };
-            let contact = link.contact_point.unwrap_or(ContactPoint::Start);
-            let gap = end_gap(road, own_end, other, contact);
-            if gap > LINK_TOLERANCE {
-                return Some(Problem {
-                    place: Place::Link {
-                        road: road.id.clone(),
-                        which,
-                    },
-                    message: format!(
-                        "road {} links its {} to the {} of road {}, but the two ends lie \
-                         {gap:.2} m apart; expected them to meet (one's end on the other's end \
-                         cross-section, within {LINK_TOLERANCE} m)",
-                        road.id,
-                        end_name(own_end),
-                        end_name(contact),
-                        other.id
-                    ),
-                });
-            }
-        }
-    }
-    None
+    road_links(od).find_map(|l| {
+        let gap = end_gap(l.road, l.own_end, l.other, l.contact);
+        (gap > LINK_TOLERANCE).then(|| {
+            l.problem(format!(
+                "the two ends lie {gap:.2} m apart; expected them to meet (one's end on the \
+                 other's end cross-section, within {LINK_TOLERANCE} m)"
+            ))
+        })
+    })
+}
+
+/// How far (rad) the direction of travel may turn where one road links to the next: the
+/// link carries traffic on, so the two ends run the same way (up to a surveyed kink).
+pub(super) const LINK_MAX_TURN_RAD: f64 = 0.5;
+
+/// A road linked to a road carries on in its direction: out of one end and into the other
+/// (an end joined to an end, or a start to a start, meets head-on and reverses the heading).
+fn links_keep_direction(od: &OpenDrive) -> Option<Problem> {
+    road_links(od).find_map(|l| {
+        // Successor end -> start (or predecessor start -> end) continues the heading; the
+        // other two pairings face each other.
+        let facing = if l.own_end != l.contact {
+            0.0
+        } else {
+            std::f64::consts::PI
+        };
+        let own = end_heading(l.road, l.own_end);
+        let theirs = end_heading(l.other, l.contact);
+        let turn = crate::geometry::wrap_angle(own - theirs - facing).abs();
+        (turn > LINK_MAX_TURN_RAD).then(|| {
+            l.problem(format!(
+                "the roads turn by {turn:.2} rad there (a road drawn backwards, or the wrong \
+                 contact point?); expected the direction of travel to carry on (within \
+                 {LINK_MAX_TURN_RAD} rad)"
+            ))
+        })
+    })
+}
+
+/// The heading of `road`'s reference line at its `end`.
+fn end_heading(road: &Road, end: ContactPoint) -> f64 {
+    let s = if end == ContactPoint::Start {
+        0.0
+    } else {
+        road.length
+    };
+    eval_road(road, s).hdg
+}
+
+/// Every junction joins something: a junction without a connection leaves every road linked
+/// to it leading nowhere.
+fn junctions_connect(od: &OpenDrive) -> Option<Problem> {
+    let junction = od.junctions.iter().find(|j| j.connections.is_empty())?;
+    let linked: Vec<&str> = od
+        .roads
+        .iter()
+        .filter(|r| {
+            [&r.predecessor, &r.successor].iter().any(|l| {
+                l.as_ref().is_some_and(|l| {
+                    l.element_type == ElementType::Junction && l.element_id == junction.id
+                })
+            })
+        })
+        .map(|r| r.id.as_str())
+        .collect();
+    let roads = match linked.as_slice() {
+        [] => "no road links to it either".to_string(),
+        ids => format!("roads {} link to it and lead nowhere", ids.join(", ")),
+    };
+    Some(Problem {
+        place: Place::Junction(junction.id.clone()),
+        message: format!(
+            "junction {} has no <connection> ({roads}); expected at least one connection from \
+             an incoming road to a connecting road",
+            junction.id
+        ),
+    })
 }
 
 fn end_name(end: ContactPoint) -> &'static str {
@@ -514,116 +614,4 @@ fn lane_edges(road: &Road, end: ContactPoint, id: i32) -> Option<[[f64; 2]; 2]> 
     let span = span?;
     let point = eval_road(road, s);
     Some([point.offset(span.inner), point.offset(span.outer)])
-}
-
-/// The samples `s` of section `k` of `road` the geometric checks use (both ends included).
-fn section_samples(road: &Road, k: usize) -> impl Iterator<Item = f64> {
-    let s0 = road.lane_sections[k].s;
-    let s1 = section_end(road, k).min(road.length);
-    let n = ((s1 - s0) / CHECK_SPACING).ceil().max(1.0) as usize;
-    (0..=n).map(move |j| s0 + (s1 - s0) * j as f64 / n as f64)
-}
-
-/// No lane boundary lies beyond the centre of the bend it follows: at curvature `k`, a
-/// boundary `t` to the left of the reference line folds over itself once `t * k >= 1`.
-fn lanes_fit_their_bends(od: &OpenDrive) -> Option<Problem> {
-    for road in &od.roads {
-        for (k, section) in road.lane_sections.iter().enumerate() {
-            for s in section_samples(road, k) {
-                let curvature = eval_road(road, s).curvature;
-                let mut problem = None;
-                for_each_span(road, section, s, |lane, span| {
-                    if problem.is_none() && span.width() > 0.0 && span.outer * curvature >= 1.0 {
-                        problem = Some(Problem {
-                            place: Place::Lane {
-                                road: road.id.clone(),
-                                section: k,
-                                lane: lane.id,
-                            },
-                            message: format!(
-                                "lane {} of road {} at s = {s:.1} m: its outer edge lies \
-                                 {:.2} m from the reference line, beyond the {:.2} m radius of \
-                                 the bend there; the lane would fold over itself",
-                                lane.id,
-                                road.id,
-                                span.outer.abs(),
-                                1.0 / curvature.abs()
-                            ),
-                        });
-                    }
-                });
-                if problem.is_some() {
-                    return problem;
-                }
-            }
-        }
-    }
-    None
-}
-
-/// No road's reference line crosses itself (a loop drawn by its geometry).
-fn reference_lines_do_not_cross(od: &OpenDrive) -> Option<Problem> {
-    for road in &od.roads {
-        let n = (road.length / CHECK_SPACING).ceil().max(1.0) as usize;
-        let points: Vec<[f64; 2]> = (0..=n)
-            .map(|j| {
-                let p = eval_road(road, road.length * j as f64 / n as f64);
-                [p.x, p.y]
-            })
-            .collect();
-        if let Some((a, b)) = first_crossing(&points) {
-            return Some(Problem {
-                place: Place::Road(road.id.clone()),
-                message: format!(
-                    "road {}: its reference line crosses itself near ({:.1}, {:.1}) (at s = \
-                     {:.1} m and s = {:.1} m); expected a line that does not loop over itself",
-                    road.id,
-                    points[a][0],
-                    points[a][1],
-                    road.length * a as f64 / n as f64,
-                    road.length * b as f64 / n as f64
-                ),
-            });
-        }
-    }
-    None
-}
-
-/// The first pair of non-adjacent segments of the polyline `points` that properly cross, by
-/// their first indices. Segments are bucketed on a grid so that long roads stay linear.
-fn first_crossing(points: &[[f64; 2]]) -> Option<(usize, usize)> {
-    use std::collections::HashMap;
-    const CELL: f64 = 4.0 * CHECK_SPACING;
-    let cell = |p: [f64; 2]| ((p[0] / CELL).floor() as i64, (p[1] / CELL).floor() as i64);
-    let mut grid: HashMap<(i64, i64), Vec<usize>> = HashMap::new();
-    let segments = points.len().saturating_sub(1);
-    let closed = segments > 2 && distance(points[0], points[segments]) < 1e-9;
-    for i in 0..segments {
-        let (a, b) = (cell(points[i]), cell(points[i + 1]));
-        let mut candidates: Vec<usize> = Vec::new();
-        for x in a.0.min(b.0)..=a.0.max(b.0) {
-            for y in a.1.min(b.1)..=a.1.max(b.1) {
-                let bucket = grid.entry((x, y)).or_default();
-                candidates.extend(bucket.iter().copied());
-                bucket.push(i);
-            }
-        }
-        for j in candidates {
-            let adjacent = i - j <= 1 || (closed && j == 0 && i == segments - 1);
-            if !adjacent && cross(points[j], points[j + 1], points[i], points[i + 1]) {
-                return Some((j, i));
-            }
-        }
-    }
-    None
-}
-
-/// Whether segments pq and rs cross at a point inside both.
-fn cross(p: [f64; 2], q: [f64; 2], r: [f64; 2], s: [f64; 2]) -> bool {
-    let orient = |a: [f64; 2], b: [f64; 2], c: [f64; 2]| {
-        (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
-    };
-    let (d1, d2) = (orient(r, s, p), orient(r, s, q));
-    let (d3, d4) = (orient(p, q, r), orient(p, q, s));
-    d1 * d2 < 0.0 && d3 * d4 < 0.0
 }

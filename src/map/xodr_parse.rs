@@ -278,6 +278,7 @@ impl Ctx<'_, '_> {
             Place::Connection { junction, id } => with_id(root, "junction", junction)
                 .map(|j| with_id(j, "connection", id).unwrap_or(j))
                 .unwrap_or(root),
+            Place::Junction(id) => with_id(root, "junction", id).unwrap_or(root),
         }
     }
 
@@ -687,6 +688,21 @@ impl Ctx<'_, '_> {
                          `length` {} m; expected the two to agree (within {} %)",
                         geometry.length,
                         CURVE_LENGTH_TOLERANCE * 100.0
+                    ),
+                ));
+            }
+        }
+        if let GeometryKind::ParamPoly3 { .. } = &geometry.kind {
+            // A curve whose (u, v) run against +u starts the road backwards: cars would be
+            // placed facing one way and driven the other.
+            let turn = crate::geometry::wrap_angle(geometry.eval(0.0).hdg - geometry.hdg).abs();
+            if turn > std::f64::consts::FRAC_PI_2 {
+                return Err(self.err(
+                    shape,
+                    format!(
+                        "<paramPoly3> starts {turn:.2} rad away from its <geometry> `hdg` (bU \
+                         and bV point backwards): the curve is drawn against the road's \
+                         direction; expected it to start along `hdg`"
                     ),
                 ));
             }

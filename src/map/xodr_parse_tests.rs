@@ -439,3 +439,90 @@ fn a_param_poly3_whose_curve_disagrees_with_its_length_is_refused() {
     );
     assert_eq!(line, line_of(&text, "<paramPoly3"));
 }
+
+#[test]
+fn a_param_poly3_drawn_backwards_is_refused() {
+    let road = |u: &str| {
+        straight("a", 0.0, 100.0, "", "").replace(
+            "<line/>",
+            &format!(r#"<paramPoly3 aU="0" bU="{u}" cU="0" dU="0" aV="0" bV="0" cV="0" dV="0" pRange="normalized"/>"#),
+        )
+    };
+    parse_xodr(&document(&road("100")), "t").expect("a curve along its heading");
+    let text = document(&road("-100"));
+    let (line, message) = parse_err(&text);
+    assert!(message.contains("backwards"), "{message}");
+    assert_eq!(line, line_of(&text, "<paramPoly3"));
+}
+
+/// Linked roads carry traffic on: a successor drawn the other way round is refused, while two
+/// roads joined end to end (meeting head-on, as the contact point says) pass.
+#[test]
+fn a_link_that_reverses_the_direction_of_travel_is_refused() {
+    let reversed = |road: String| road.replace(r#"hdg="0""#, r#"hdg="3.141592653589793""#);
+    let next = |contact: &str| {
+        format!(r#"<successor elementType="road" elementId="b" contactPoint="{contact}"/>"#)
+    };
+    let head_on = document(
+        &(straight("a", 0.0, 100.0, &next("end"), "")
+            + &reversed(straight("b", 150.0, 50.0, "", ""))),
+    );
+    parse_xodr(&head_on, "t").expect("two roads joined end to end");
+    let text = document(
+        &(straight("a", 0.0, 100.0, &next("start"), "")
+            + &reversed(straight("b", 100.0, 50.0, "", ""))),
+    );
+    let (line, message) = parse_err(&text);
+    assert!(
+        message.contains("turn by 3.14 rad") && message.contains("road b"),
+        "{message}"
+    );
+    assert_eq!(line, line_of(&text, "<successor"));
+}
+
+#[test]
+fn a_junction_without_connections_is_refused() {
+    let into = r#"<successor elementType="junction" elementId="j"/>"#;
+    let text =
+        document(&(straight("a", 0.0, 100.0, into, "") + "<junction id=\"j\" name=\"x\"/>\n"));
+    let (line, message) = parse_err(&text);
+    assert!(
+        message.contains("junction j has no <connection>") && message.contains("roads a"),
+        "{message}"
+    );
+    assert_eq!(line, line_of(&text, "<junction"));
+}
+
+#[test]
+fn a_road_given_twice_under_two_ids_is_refused() {
+    let text = document(&(straight("a", 0.0, 100.0, "", "") + &straight("b", 20.0, 50.0, "", "")));
+    let (line, message) = parse_err(&text);
+    assert!(message.contains("road b lies on road a"), "{message}");
+    assert_eq!(line, line_of(&text, "<road id=\"b\""));
+    // The same line the other way (a carriageway for the other direction) is another road.
+    let other_way =
+        straight("b", 70.0, 50.0, "", "").replace(r#"hdg="0""#, r#"hdg="3.141592653589793""#);
+    parse_xodr(
+        &document(&(straight("a", 0.0, 100.0, "", "") + &other_way)),
+        "t",
+    )
+    .expect("two directions");
+}
+
+/// A spiral winding inwards never crosses its own reference line, but with loops nested closer
+/// than the road is wide its lanes lie over each other.
+#[test]
+fn a_spiral_whose_loops_overlap_is_refused() {
+    // Curvature 0.04 -> 0.05 1/m over 700 m: about five loops of 20-25 m radius, each within
+    // a metre of the last, under 7 m of lanes.
+    let spiral = straight("a", 0.0, 700.0, "", "")
+        .replace("<line/>", r#"<spiral curvStart="0.04" curvEnd="0.05"/>"#);
+    let text = document(&spiral);
+    let (line, message) = parse_err(&text);
+    assert!(message.contains("lie over its lanes"), "{message}");
+    assert_eq!(line, line_of(&text, "<road id=\"a\""));
+    // One loop of the same spiral folds nothing.
+    let one_loop = straight("a", 0.0, 140.0, "", "")
+        .replace("<line/>", r#"<spiral curvStart="0.04" curvEnd="0.0414"/>"#);
+    parse_xodr(&document(&one_loop), "t").expect("one loop");
+}

@@ -50,12 +50,28 @@ pub fn parse_points(text: &str) -> Result<Vec<(f64, f64)>> {
         .and_then(refuse_repeated_points)
 }
 
-/// Two spellings of one point (`1:0.5`, `1.0:0.50`) would train one folder twice.
+/// Points this close count as one: lambda relative to its size, alpha (a share of the
+/// batch's initial states, far coarser than this) absolute.
+const SAME_POINT: f64 = 1e-6;
+
+/// Two spellings of one point (`1:0.5`, `1.0:0.50`) would train one folder twice, and two
+/// points a rounding apart (`1:0.5`, `1:0.50000000001`) would train the same run twice.
 fn refuse_repeated_points(points: Vec<(f64, f64)>) -> Result<Vec<(f64, f64)>> {
+    let same = |a: &(f64, f64), b: &(f64, f64)| {
+        (a.0 - b.0).abs() <= SAME_POINT * a.0.abs().max(1.0) && (a.1 - b.1).abs() <= SAME_POINT
+    };
     for (k, point) in points.iter().enumerate() {
-        if points[..k].contains(point) {
+        if let Some(earlier) = points[..k].iter().find(|p| same(p, point)) {
+            let what = if earlier == point {
+                "is given twice".to_string()
+            } else {
+                format!(
+                    "is {}:{} again, within {SAME_POINT:e}",
+                    earlier.0, earlier.1
+                )
+            };
             return Err(Error::InvalidArgument(format!(
-                "sweep point {}:{} is given twice; expected each LAMBDA:ALPHA once",
+                "sweep point {}:{} {what}; expected each LAMBDA:ALPHA once",
                 point.0, point.1
             )));
         }
@@ -176,6 +192,15 @@ mod tests {
             let e = parse_points(bad).unwrap_err().to_string();
             assert!(e.contains(&format!("`{bad}`")), "{e}");
         }
+        let e = parse_points("1:0.5,1:0.50000000001")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("is 1:0.5 again"), "{e}");
+        let e = parse_points("1000000:0.5,1000000.5:0.5")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("again"), "lambda relative to its size: {e}");
+        assert_eq!(parse_points("1:0.5,1:0.501").unwrap().len(), 2);
         assert_eq!(
             point_dir(Path::new("runs/sweep"), 5.0, 0.3),
             Path::new("runs/sweep/lambda5_alpha0.3")

@@ -284,6 +284,37 @@ pub fn save(
     crate::io::remove_stale_temporaries(&root);
     let tmp = crate::io::temp_name(&root, "checkpoint", None);
     crate::io::create_folder(&tmp)?;
+    let written = write_files(
+        &tmp,
+        policy,
+        value,
+        policy_optimizer,
+        value_optimizer,
+        state,
+    );
+    if let Err(e) = written {
+        // A full disk or a failed write: leave nothing half-written beside the checkpoints
+        // (best effort, the write's error is the one to report).
+        let _ = crate::io::remove_folder(&tmp);
+        return Err(e);
+    }
+    // A re-run of the same iteration (after a resume) replaces the old folder.
+    crate::io::remove_folder(&dir)?;
+    crate::io::rename(&tmp, &dir)?;
+    atomic_write(&root.join(LATEST), name.as_bytes())?;
+    prune(&root, &name, keep)?;
+    Ok(dir)
+}
+
+/// The checkpoint's files, with the tensors' checksums in its state, into the folder `tmp`.
+fn write_files(
+    tmp: &Path,
+    policy: &PolicyNetwork,
+    value: &ValueNetwork,
+    policy_optimizer: &ModuleOptimizer,
+    value_optimizer: &ModuleOptimizer,
+    state: &LoopState,
+) -> Result<()> {
     let optimizer_bytes = |o: &ModuleOptimizer, path: &Path| -> Result<Vec<u8>> {
         Ok(o.into_bytes().map_err(|e| record_error(path, e))?.to_vec())
     };
@@ -311,12 +342,7 @@ pub fn save(
     for (file, bytes) in tensors.iter().chain([&(STATE, state_bytes)]) {
         crate::io::write_new(&tmp.join(file), bytes)?;
     }
-    // A re-run of the same iteration (after a resume) replaces the old folder.
-    crate::io::remove_folder(&dir)?;
-    crate::io::rename(&tmp, &dir)?;
-    atomic_write(&root.join(LATEST), name.as_bytes())?;
-    prune(&root, &name, keep)?;
-    Ok(dir)
+    Ok(())
 }
 
 /// Deletes all but the newest `keep + 1` checkpoint folders (never `newest`).

@@ -13,12 +13,26 @@ use crate::io::Format;
 
 use super::config::TrainConfig;
 
-/// sha256 of every file `config` reads during a run (not its warm start, which only a new run
-/// reads), keyed by "field path"; a folder input gives one entry per file the run reads from
-/// it ("field folder/file"), so a change is named by its file and a file the run does not
-/// read (a scenario folder's eval/, a note beside the clips) changes nothing.
+/// sha256 of every file `config` reads during a run, keyed by "field path"; a folder input
+/// gives one entry per file the run reads from it ("field folder/file"), so a change is named
+/// by its file and a file the run does not read (a scenario folder's eval/, a note beside the
+/// clips) changes nothing. The warm start counts only where the KL reference is built from
+/// it (`[reference] init`), since then every resume reads it again; otherwise only a new run
+/// reads it.
 pub fn input_digests(config: &TrainConfig) -> Result<BTreeMap<String, String>> {
     let mut out = BTreeMap::new();
+    if let Some(init) = config
+        .init
+        .as_ref()
+        .filter(|_| reference_is_warm_start(config))
+    {
+        let file = init.policy_file();
+        let bytes = crate::io::read_bytes(&file, Format::Parameters)?;
+        out.insert(
+            format!("reference.init {}", file.display()),
+            sha256_hex(&bytes),
+        );
+    }
     for (field, path) in config.input_paths() {
         if field == "init.policy" {
             continue;
@@ -37,6 +51,11 @@ pub fn input_digests(config: &TrainConfig) -> Result<BTreeMap<String, String>> {
         }
     }
     Ok(out)
+}
+
+/// Whether the run builds its KL reference from the warm start, on every start and resume.
+fn reference_is_warm_start(config: &TrainConfig) -> bool {
+    config.method.uses_reference() && config.reference.as_ref().is_some_and(|r| r.init)
 }
 
 /// The read cap of a field's files.
@@ -138,6 +157,14 @@ pub fn changed_input(
         return Ok(Some(format!("{added} was not there when the run started")));
     }
     Ok(None)
+}
+
+/// The sha256 a run recorded for its dynamics file, if it read one.
+pub fn recorded_dynamics_digest(recorded: &BTreeMap<String, String>) -> Option<&str> {
+    recorded
+        .iter()
+        .find(|(input, _)| input.starts_with("dynamics "))
+        .map(|(_, digest)| digest.as_str())
 }
 
 /// Refuses to go on with a run whose inputs changed since it started.
