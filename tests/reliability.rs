@@ -878,3 +878,62 @@ fn a_scenario_folder_a_run_would_ignore_is_refused() {
         &["--scenarios", "trains on no long-tail scenarios"],
     );
 }
+
+/// `recordings generate --values` sets the concealed effect's parameters, checked against the
+/// ranges sim2real fits: a count that does not match, a value outside its range and values for
+/// an effect without catalogue parameters are refused by name.
+#[test]
+fn generated_effect_values_are_checked_against_the_catalogue() {
+    let generate = |effect: &str, values: &str| {
+        vec![
+            "recordings".to_string(),
+            "generate".into(),
+            "--effect".into(),
+            effect.into(),
+            "--values".into(),
+            values.into(),
+            "--tracks".into(),
+            "3".into(),
+            "--out".into(),
+            "unused.csv".into(),
+        ]
+    };
+    let cases = [
+        (generate("drag", "0.0006"), vec!["1 given", "c_d, c_r"]),
+        (
+            generate("sideslip", "7"),
+            vec!["sideslip's lr_m in m", "[0, 3]"],
+        ),
+        (generate("sideslip", "nan"), vec!["--values NaN"]),
+        (
+            generate("none", "0.4"),
+            vec!["--effect none has no catalogue parameters"],
+        ),
+    ];
+    for (args, expected) in cases {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        assert_refused(&args, &expected);
+    }
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = dir.path().join("weak.csv");
+    let output = rtr()
+        .args([
+            "recordings",
+            "generate",
+            "--effect",
+            "sideslip",
+            "--values",
+            "0.4",
+        ])
+        .args(["--tracks", "3", "--out"])
+        .arg(&out)
+        .output()
+        .expect("runs");
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let said = String::from_utf8_lossy(&output.stdout);
+    assert!(said.contains("concealed sideslip [0.4]"), "{said}");
+}

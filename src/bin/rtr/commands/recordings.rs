@@ -35,6 +35,12 @@ pub enum RecordingsCommand {
         /// or `sampled` from a controller ten times faster than the log.
         #[arg(long, default_value = "held")]
         command_timing: String,
+        /// The concealed catalogue effect's parameters, comma-separated in the catalogue's
+        /// order (e.g. `--effect sideslip --values 0.4` for lr_m, `--effect drag --values
+        /// 0.0006,0.15` for c_d, c_r); default: a typical passenger car's. Each within the
+        /// range sim2real fits.
+        #[arg(long, value_delimiter = ',')]
+        values: Option<Vec<f64>>,
         /// Output CSV.
         #[arg(long)]
         out: PathBuf,
@@ -49,6 +55,7 @@ pub fn run(command: RecordingsCommand) -> Result<()> {
         period,
         noise_scale,
         command_timing,
+        values,
         out,
     } = command;
     let _claim = claim_output_file(&out, "--out", &Inputs::new())?;
@@ -70,6 +77,9 @@ pub fn run(command: RecordingsCommand) -> Result<()> {
             }
         },
     };
+    if let Some(values) = values {
+        set_effect_values(&mut config, &effect, values)?;
+    }
     config.tracks = tracks;
     config.period_s = check_in("--period", "seconds", period, 0.02, 0.5)?;
     let scale = check_in(
@@ -106,6 +116,35 @@ pub fn run(command: RecordingsCommand) -> Result<()> {
         },
         out.display()
     )?;
+    Ok(())
+}
+
+/// The concealed effect's parameters from `--values`: one per catalogue parameter, each within
+/// the range sim2real fits (so the answer is one it could give).
+fn set_effect_values(config: &mut GeneratorConfig, effect: &str, values: Vec<f64>) -> Result<()> {
+    let Some(concealed) = config.effect.as_ref().map(|(e, _)| *e) else {
+        return Err(Error::InvalidArgument(format!(
+            "--values: --effect {effect} has no catalogue parameters to set; expected --values \
+             only with one of {}",
+            Effect::ALL.map(|e| e.name()).join(", ")
+        )));
+    };
+    let specs = concealed.params();
+    if values.len() != specs.len() {
+        let names: Vec<&str> = specs.iter().map(|p| p.name).collect();
+        return Err(Error::InvalidArgument(format!(
+            "--values: {} given, but {concealed} has {} ({}); expected them comma-separated in \
+             that order",
+            values.len(),
+            specs.len(),
+            names.join(", ")
+        )));
+    }
+    for (value, spec) in values.iter().zip(specs) {
+        let what = format!("{}'s {} in {}", concealed, spec.name, spec.unit);
+        check_in("--values", &what, *value, spec.min, spec.max)?;
+    }
+    config.effect = Some((concealed, values));
     Ok(())
 }
 
