@@ -424,6 +424,42 @@ fn a_teleporting_row_is_rejected() {
     Recordings::parse("rec.csv", &ok).unwrap();
 }
 
+/// A noisier sensor scatters a standing car's positions by more than a metre between some
+/// samples: ordinary for that sensor, not a jump. A glitch of 20 m in the same track still is.
+#[test]
+fn the_jump_allowance_grows_with_the_tracks_own_noise() {
+    // Five samples a second for a minute, 0.45 m of scatter in a fixed pattern (no trend).
+    let row = |k: usize, glitch: f64| {
+        let noise = |phase: f64| 0.45 * (k as f64 * 2.7 + phase).sin();
+        format!(
+            "s,{:.1},{:.4},{:.4},0,0.05,0,0\n",
+            0.2 * k as f64,
+            noise(0.0) + glitch,
+            noise(1.1)
+        )
+    };
+    let track = |glitch_at: usize| -> String {
+        (0..300)
+            .map(|k| row(k, if k == glitch_at { 20.0 } else { 0.0 }))
+            .collect()
+    };
+    let quiet = track(usize::MAX);
+    let widest = (1..300)
+        .map(|k| {
+            let p = |k: usize| 0.45 * (k as f64 * 2.7).sin();
+            let q = |k: usize| 0.45 * (k as f64 * 2.7 + 1.1).sin();
+            (p(k) - p(k - 1)).hypot(q(k) - q(k - 1))
+        })
+        .fold(0.0, f64::max);
+    assert!(
+        widest > 1.05,
+        "the scatter alone exceeds the fixed 1 m slack: {widest}"
+    );
+    Recordings::parse("rec.csv", &format!("{HEADER}\n{quiet}")).expect("a noisy standing car");
+    let message = error(&format!("{HEADER}\n{}", track(150)));
+    assert_contains(&message, &["track `s`", "jump"]);
+}
+
 /// A file that is not UTF-8 text (Latin-1, a binary given by mistake) is named with the line
 /// and column where the bad byte sits.
 #[test]

@@ -28,14 +28,21 @@ fn run_blind(config: &GeneratorConfig) -> Report {
 /// The effect is named first, each parameter is within 10 % of the truth, and held-out
 /// error falls by at least `min_drop_pct` from the baseline.
 fn names_and_fits(effect: Effect, min_drop_pct: f64) {
-    let report = run_blind(&GeneratorConfig::with_effect(Some(effect), 7));
+    names_and_fits_at(effect, typical(effect), min_drop_pct);
+}
+
+/// [`names_and_fits`] with the effect's parameters at `truths`.
+fn names_and_fits_at(effect: Effect, truths: Vec<f64>, min_drop_pct: f64) {
+    let mut config = GeneratorConfig::with_effect(Some(effect), 7);
+    config.effect = Some((effect, truths.clone()));
+    let report = run_blind(&config);
     let summary = report.summary().join("\n");
     let first = report
         .findings
         .first()
         .unwrap_or_else(|| panic!("nothing found:\n{summary}"));
     assert_eq!(first.effect, Some(effect), "{summary}");
-    for (spec, truth) in effect.params().iter().zip(typical(effect)) {
+    for (spec, truth) in effect.params().iter().zip(truths) {
         let fitted = report.final_model.terms[0].params[spec.name];
         assert!(
             (fitted - truth).abs() <= 0.1 * truth,
@@ -47,9 +54,16 @@ fn names_and_fits(effect: Effect, min_drop_pct: f64) {
         report.final_model.improvement_vs_baseline_pct >= min_drop_pct,
         "{summary}"
     );
-    // Significant on held-out tracks, by the parsimony rule.
+    // Significant on held-out tracks, by the parsimony rule: at least 10 % better, and
+    // consistently so (t >= 2.5, or every sign pattern but a few beaten).
+    let candidate = report
+        .candidates
+        .iter()
+        .find(|c| c.effect == effect)
+        .expect("the effect was tried");
+    let consistent = candidate.t_stat >= 2.5 || candidate.sign_flip_p.is_some_and(|p| p <= 0.005);
     assert!(
-        first.t_stat >= 2.5 && first.improvement_pct >= 10.0,
+        consistent && first.improvement_pct >= 10.0 && candidate.significant,
         "{summary}"
     );
     // What was identified loads into the training simulator.
@@ -97,6 +111,16 @@ fn sideslip_is_found() {
     // Sideslip only moves the recorded point by about lr x (heading change): a clear,
     // significant drop, not a halving, is what it can show.
     names_and_fits(Effect::Sideslip, 10.0);
+}
+
+/// Weak effects, each lifting the baseline's held-out error only some tens of percent above
+/// the noise floor: sideslip with the recorded point 0.3 m ahead of the rear axle (a fifth
+/// of the typical 1.4 m), and a steering rate limit of 0.6 rad/s (2.4 times the typical
+/// 0.25 rad/s, reached only in brisk steering).
+#[test]
+fn weak_sideslip_and_a_weak_steering_rate_limit_are_found() {
+    names_and_fits_at(Effect::Sideslip, vec![0.3], 10.0);
+    names_and_fits_at(Effect::SteerRateLimit, vec![0.6], 10.0);
 }
 
 #[test]

@@ -67,6 +67,30 @@ const MAX_COORDINATE: f64 = 1e7;
 /// [`JUMP_SLACK`] (position noise) before the row is called a jump (a teleport, a glitch).
 pub(crate) const JUMP_FACTOR: f64 = 2.0;
 pub(crate) const JUMP_SLACK: f64 = 1.0;
+/// Or this many of the track's position-noise widths ([`position_noise`]), when larger: the
+/// step between two noisy samples scatters by sqrt(2) widths, so eight keep a sensor's
+/// ordinary scatter (over 10^4 steps) well inside while a metre-scale glitch stays out.
+const JUMP_NOISE_WIDTHS: f64 = 8.0;
+/// Samples a track needs before its own noise is estimated.
+const NOISE_MIN_SAMPLES: usize = 20;
+
+/// A robust estimate of a track's position noise (m, one axis): the median absolute second
+/// difference of x and y scaled to a standard deviation (a second difference of white noise
+/// has sqrt(6) of its width; 1.4826 turns a median absolute value into a width). Driving adds
+/// little to second differences at logging rates, and a glitch does not move the median of a
+/// track long enough to have one ([`NOISE_MIN_SAMPLES`]; shorter tracks get 0).
+fn position_noise(track: &RecordedTrack) -> f64 {
+    if track.len() < NOISE_MIN_SAMPLES {
+        return 0.0;
+    }
+    let second = |v: &[f64], k: usize| (v[k] - 2.0 * v[k - 1] + v[k - 2]).abs();
+    let mut d: Vec<f64> = (2..track.len())
+        .flat_map(|k| [second(&track.x, k), second(&track.y, k)])
+        .collect();
+    let mid = d.len() / 2;
+    let (_, median, _) = d.select_nth_unstable_by(mid, f64::total_cmp);
+    1.4826 * *median / 6f64.sqrt()
+}
 
 /// One vehicle's uniformly sampled recording.
 #[derive(Debug, Clone)]
@@ -700,11 +724,14 @@ impl TrackBuilder {
 
     /// Refuses a row whose position is not where the recorded speeds could have taken the
     /// vehicle: a teleport or a glitch would otherwise be fitted as if it were driving.
+    /// The slack grows with the track's own position noise, so a noisier sensor's ordinary
+    /// scatter is not called a jump.
     fn check_jumps(source: &str, track: &RecordedTrack, lines: &[usize]) -> Result<()> {
+        let slack = JUMP_SLACK.max(JUMP_NOISE_WIDTHS * position_noise(track));
         for k in 1..track.len() {
             let distance = (track.x[k] - track.x[k - 1]).hypot(track.y[k] - track.y[k - 1]);
             let step = track.t[k] - track.t[k - 1];
-            let allowed = JUMP_FACTOR * track.speed[k].max(track.speed[k - 1]) * step + JUMP_SLACK;
+            let allowed = JUMP_FACTOR * track.speed[k].max(track.speed[k - 1]) * step + slack;
             if distance > allowed {
                 return Err(Error::invalid(
                     source,

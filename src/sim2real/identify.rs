@@ -40,8 +40,11 @@ pub struct Sim2RealOptions {
     /// Parsimony rule: an effect is reported only if it lowers held-out position RMSE by at
     /// least this much ...
     pub min_improvement_pct: f64,
-    /// ... and the per-track paired improvement has at least this t statistic.
+    /// ... and the per-track paired improvement has at least this t statistic, or an exact
+    /// sign-flip p-value at most [`Self::max_sign_flip_p`] (an effect that helps on every
+    /// track where it acts, but acts on some only).
     pub min_t_stat: f64,
+    pub max_sign_flip_p: f64,
     /// Candidates to try.
     pub effects: Vec<Effect>,
     /// Wheelbase for tracks that declare none (m).
@@ -68,6 +71,7 @@ impl Default for Sim2RealOptions {
             fit: FitOptions::default(),
             min_improvement_pct: 10.0,
             min_t_stat: 2.5,
+            max_sign_flip_p: 0.005,
             effects: Effect::ALL.to_vec(),
             default_wheelbase_m: 2.8,
             commands_inferred: false,

@@ -24,6 +24,9 @@ pub struct Comparison {
     pub improvement_pct: f64,
     /// Mean over held-out tracks of ln(MSE before / MSE after), over its standard error.
     pub t_stat: f64,
+    /// One-sided p-value of the exact sign-flip test of the same mean ([`sign_flip_p`]);
+    /// `None` with more than [`MAX_EXACT_TRACKS`] held-out tracks.
+    pub sign_flip_p: Option<f64>,
     pub tracks: usize,
     /// Passes the parsimony rule.
     pub significant: bool,
@@ -68,16 +71,50 @@ impl Comparison {
         };
         let (before, after) = (rmse(reference), rmse(new));
         let improvement_pct = 100.0 * (1.0 - after / before.max(1e-12));
+        let sign_flip_p = sign_flip_p(&ratios);
+        let consistent = t_stat >= options.min_t_stat
+            || sign_flip_p.is_some_and(|p| p <= options.max_sign_flip_p);
         Self {
             rmse_before_m: before,
             rmse_after_m: after,
             improvement_pct,
             t_stat,
+            sign_flip_p,
             tracks: ratios.len(),
-            significant: improvement_pct >= options.min_improvement_pct
-                && t_stat >= options.min_t_stat,
+            significant: improvement_pct >= options.min_improvement_pct && consistent,
         }
     }
+}
+
+/// Held-out tracks up to which [`sign_flip_p`] enumerates every sign pattern (2^16).
+pub const MAX_EXACT_TRACKS: usize = 16;
+
+/// One-sided p-value of the exact sign-flip (permutation) test that the per-track log-ratios
+/// `ratios` have mean > 0: the share of the 2^n patterns of signs whose sum is at least the
+/// observed one. Under no effect each track's ratio is as likely negative as positive, and
+/// no normality is assumed, so an effect that shows on some tracks only (a steering rate
+/// limit reached in brisk steering alone) is judged by how consistently it helps rather than
+/// how evenly; the t statistic's standard error grows with that unevenness. `None` above
+/// [`MAX_EXACT_TRACKS`] tracks, where the t statistic's normal limit serves.
+pub fn sign_flip_p(ratios: &[f64]) -> Option<f64> {
+    let n = ratios.len();
+    if n == 0 || n > MAX_EXACT_TRACKS {
+        return None;
+    }
+    let observed: f64 = ratios.iter().sum();
+    // A pattern ties the observed sum when it flips only zero ratios: compare with slack.
+    let slack = 1e-12 * ratios.iter().map(|r| r.abs()).sum::<f64>().max(1e-300);
+    let at_least = (0u32..1 << n)
+        .filter(|mask| {
+            let sum: f64 = ratios
+                .iter()
+                .enumerate()
+                .map(|(i, r)| if mask & (1 << i) != 0 { -r } else { *r })
+                .sum();
+            sum >= observed - slack
+        })
+        .count();
+    Some(at_least as f64 / (1u64 << n) as f64)
 }
 
 /// A fitted value with its standard error.
@@ -194,6 +231,9 @@ pub struct CandidateResult {
     /// Against the nominal refit.
     pub improvement_pct: f64,
     pub t_stat: f64,
+    /// The exact sign-flip test's p-value ([`sign_flip_p`]), beside the t statistic.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sign_flip_p: Option<f64>,
     pub significant: bool,
 }
 
@@ -515,6 +555,7 @@ fn candidate_results(selection: &Selection) -> Vec<CandidateResult> {
                 heldout_pos_rmse_m: c.rmse_after_m,
                 improvement_pct: c.improvement_pct,
                 t_stat: c.t_stat,
+                sign_flip_p: c.sign_flip_p,
                 significant: c.significant,
             }
         })
@@ -650,5 +691,29 @@ impl Final {
             improvement_vs_baseline_pct: 100.0 * (1.0 - final_rmse / baseline_rmse.max(1e-12)),
             mismatch,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::sign_flip_p;
+
+    #[test]
+    fn the_sign_flip_test_counts_sign_patterns_exactly() {
+        // Every track better, however unevenly: only the observed pattern reaches its sum.
+        let uneven = [
+            0.01, 0.02, 0.9, 0.01, 1.5, 0.03, 0.02, 0.01, 0.04, 0.02, 2.0, 0.01,
+        ];
+        let p = sign_flip_p(&uneven).expect("12 tracks");
+        assert!((p - 1.0 / 4096.0).abs() < 1e-15, "{p}");
+        // Balanced gains and losses: about half the patterns do at least as well.
+        let balanced = [0.5, -0.5, 0.3, -0.3, 0.2, -0.2];
+        let p = sign_flip_p(&balanced).expect("6 tracks");
+        assert!((0.5..0.7).contains(&p), "{p}");
+        // No change at all is no evidence.
+        assert_eq!(sign_flip_p(&[0.0; 8]), Some(1.0));
+        // Beyond the exact limit the t statistic serves.
+        assert_eq!(sign_flip_p(&[0.1; 17]), None);
+        assert_eq!(sign_flip_p(&[]), None);
     }
 }
