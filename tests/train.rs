@@ -162,6 +162,19 @@ fn evaluating_a_run_refuses_a_config_or_dynamics_file_changed_since_it_trained()
         );
     }
     write_lag(&dynamics, 0.4);
+    // A hand-edited digest too short to abbreviate is named whole, not a panic.
+    let state = newest.join("state.json");
+    let text = std::fs::read_to_string(&state).expect("state.json");
+    let digest = text
+        .split('"')
+        .skip_while(|part| !part.starts_with("dynamics "))
+        .nth(2)
+        .expect("the dynamics digest")
+        .to_string();
+    std::fs::write(&state, text.replace(&digest, "abc")).expect("edited");
+    let message = load(&newest).expect_err("another digest").to_string();
+    assert!(message.contains("abc then"), "{message}");
+    std::fs::write(&state, text).expect("restored");
 
     let config_toml = run.join("config.toml");
     let text = std::fs::read_to_string(&config_toml).expect("config.toml");

@@ -92,6 +92,12 @@ pub fn sha256_hex(bytes: &[u8]) -> String {
         .collect()
 }
 
+/// The first 12 characters of a hex digest, for messages; a digest read from a hand-edited
+/// file may be shorter (or not hex), and is then shown whole.
+pub fn short_digest(digest: &str) -> &str {
+    digest.get(..12).unwrap_or(digest)
+}
+
 /// Loads a recording. With `expected_sha256`, the file is first checked against it (the
 /// shipped data must be the published bytes); pass `None` for other recordings.
 pub fn load_recording(path: &Path, expected_sha256: Option<&str>) -> Result<Recording> {

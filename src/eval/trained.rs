@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::data::automatum::sha256_hex;
+use crate::data::automatum::{sha256_hex, short_digest};
 use crate::error::{Error, Result};
 use crate::model::PolicyNetwork;
 use crate::sim::Dynamics;
@@ -164,8 +164,8 @@ fn check_recorded_dynamics(dir: &Path, state: &LoopState, dynamics: &Path) -> Re
             "has other contents than when the policy in {} was trained (sha256 {} then, {} \
              now); the policy would be evaluated under other physics. Restore the file",
             dir.display(),
-            &then[..12],
-            &now[..12]
+            short_digest(then),
+            short_digest(&now)
         ),
     ))
 }

@@ -7,7 +7,7 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use crate::data::automatum::sha256_hex;
+use crate::data::automatum::{sha256_hex, short_digest};
 use crate::error::{Error, Result};
 use crate::io::Format;
 
@@ -143,8 +143,8 @@ pub fn changed_input(
             Some(current) if current == then => continue,
             Some(current) => format!(
                 "{input} has other contents than when the run started (sha256 {} then, {} now)",
-                &then[..12],
-                &current[..12]
+                short_digest(then),
+                short_digest(current)
             ),
             None => format!("{input} is no longer read (removed, or not named by this config)"),
         };
