@@ -796,6 +796,112 @@ fn a_scenario_folder_is_checked_as_a_set() {
         states[middle][0] = serde_json::json!(x + 5000.0);
         serde_json::to_vec_pretty(&v).expect("JSON")
     };
+    // The first eval scenario with its JSON changed by `edit`.
+    let edited = |edit: &dyn Fn(&mut serde_json::Value)| {
+        let mut v: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(first("eval")).expect("read")).expect("JSON");
+        edit(&mut v);
+        serde_json::to_vec_pretty(&v).expect("JSON")
+    };
+    // A drawn value of the first hero's first phase, by its name in `parameters`.
+    let phase_label = |v: &serde_json::Value| -> (String, String, String) {
+        let name = v["parameters"]
+            .as_object()
+            .expect("parameters")
+            .keys()
+            .find(|k| k.starts_with("heroes[0].phases[0]."))
+            .expect("the first hero's first phase has a drawn value")
+            .clone();
+        let mut parts = name.rsplitn(3, '.');
+        let field = parts.next().expect("field").to_string();
+        let part = parts.next().expect("trigger or action").to_string();
+        (name, part, field)
+    };
+    let label_cases: Vec<(&str, Vec<u8>, &str)> = vec![
+        (
+            "zz-label-edited.json",
+            edited(&|v| {
+                let (name, _, _) = phase_label(v);
+                let drawn = v["parameters"][&name].as_f64().expect("number");
+                v["parameters"][&name] = serde_json::json!(drawn + 1.0);
+            }),
+            "heroes[0].phases[0]",
+        ),
+        (
+            "zz-script-edited.json",
+            edited(&|v| {
+                let (_, part, field) = phase_label(v);
+                let value = &mut v["heroes"][0]["phases"][0][&part][&field];
+                *value = serde_json::json!(value.as_f64().expect("number") + 1.0);
+            }),
+            "heroes[0].phases[0]",
+        ),
+        (
+            "zz-unlabelled.json",
+            edited(&|v| {
+                let (name, _, _) = phase_label(v);
+                v["parameters"].as_object_mut().expect("map").remove(&name);
+            }),
+            "has no `heroes[0].phases[0]",
+        ),
+        (
+            "zz-unknown-label.json",
+            edited(&|v| v["parameters"]["hero.speed"] = serde_json::json!(3.0)),
+            "parameters.hero.speed",
+        ),
+        (
+            "zz-reference.json",
+            edited(&|v| {
+                let collided = v["reference"]["collided_agents"]
+                    .as_array_mut()
+                    .expect("list");
+                if collided.is_empty() {
+                    collided.push(serde_json::json!(1));
+                } else {
+                    collided.clear();
+                }
+            }),
+            "reference.collided_agents",
+        ),
+    ];
+    // A scenario edited in place, in a set and as a single file.
+    let original = first("eval");
+    let original_name = original
+        .file_name()
+        .and_then(|n| n.to_str())
+        .expect("UTF-8 name");
+    for (k, (name, bytes, expected)) in label_cases.iter().enumerate() {
+        let root = dir.path().join(format!("edited{k}"));
+        copy_folder(&good, &root);
+        std::fs::write(root.join("eval").join(original_name), bytes).expect("write");
+        assert_refused(
+            &[
+                "eval",
+                "--checkpoint",
+                "models/il_main",
+                "--set",
+                "longtail",
+                "--scenes",
+                "1",
+                "--scenarios",
+                root.to_str().expect("UTF-8 path"),
+            ],
+            &[original_name, expected],
+        );
+        let file = dir.path().join(name);
+        std::fs::write(&file, bytes).expect("write");
+        let out = dir.path().join(format!("{name}.svg"));
+        assert_refused(
+            &[
+                "render",
+                "--scenario",
+                file.to_str().expect("UTF-8 path"),
+                "--out",
+                out.to_str().expect("UTF-8 path"),
+            ],
+            &[name, expected],
+        );
+    }
     let cases: Vec<(&str, Vec<u8>, &str)> = vec![
         (
             "zz-teleported.json",

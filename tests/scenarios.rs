@@ -117,22 +117,30 @@ fn every_family_produces_valid_scenarios_that_round_trip_through_json() {
     let failures: Vec<String> = families()
         .par_iter()
         .filter_map(|family| {
-            let s = match sample_scenario(
-                family,
-                &ctx(),
-                family_seed(11, &family.name, 0),
-                ScenarioSet::Eval,
-                0,
-            ) {
+            let set = match family.set {
+                FamilySet::Train => ScenarioSet::Eval,
+                FamilySet::Ood => ScenarioSet::Ood,
+            };
+            let s = match sample_scenario(family, &ctx(), family_seed(11, &family.name, 0), set, 0)
+            {
                 Ok(s) => s,
                 Err(e) => return Some(e.to_string()),
             };
             assert_eq!(s.family, family.name);
+            // The family names every value its sampler draws, as the scenario records it.
+            assert_eq!(
+                s.parameters.keys().collect::<Vec<_>>(),
+                family.drawn_ranges().keys().collect::<Vec<_>>(),
+                "{}",
+                family.name
+            );
             assert_valid(&s);
             let path = dir.path().join(format!("{}.json", s.id()));
             s.write(&path).unwrap();
             let back = ConcreteScenario::from_json_file(&path).unwrap();
             assert_eq!(back, s);
+            back.check_reference(&s.id())
+                .expect("the reference run is the file's");
             None
         })
         .collect();
@@ -562,6 +570,24 @@ fn scenario_files_with_nonsense_name_the_file_and_field() {
             }
         },
         &["agents[0].states", "times the speed of the positions"],
+    );
+    // Labels that a draw of the shipped family cannot have.
+    let other = &families()[1];
+    refused(
+        &|j| j["family"] = other.name.clone().into(),
+        &["shipped family", &other.name],
+    );
+    refused(
+        &|j| j["description"] = "a quiet drive".into(),
+        &["description", "a quiet drive", &family.name],
+    );
+    refused(
+        &|j| j["parameters"]["target.station"] = 1e5.into(),
+        &["parameters.target.station", "outside"],
+    );
+    refused(
+        &|j| j["future_steps"] = (s.future_steps + 3).into(),
+        &["future_steps", "per step"],
     );
 }
 

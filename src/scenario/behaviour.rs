@@ -141,6 +141,47 @@ impl Phase<Range> {
         Ok(())
     }
 
+    /// The phase's ranges by the name [`Self::sample`] records each draw under
+    /// (`trigger.<field>`, `action.<field>`).
+    pub fn ranges(&self) -> Vec<(String, Range)> {
+        let mut out = Vec::new();
+        match &self.trigger {
+            Trigger::Start => {}
+            Trigger::After { seconds } | Trigger::TtcBelow { seconds } => {
+                out.push(("trigger.seconds".to_string(), *seconds));
+            }
+            Trigger::AheadGapBelow { metres }
+            | Trigger::AheadGapAbove { metres }
+            | Trigger::BehindGapBelow { metres }
+            | Trigger::Travelled { metres } => out.push(("trigger.metres".to_string(), *metres)),
+        }
+        let action: Vec<(&str, Range)> = match &self.action {
+            Action::ChangeLane { lateral_speed, .. } => vec![("lateral_speed", *lateral_speed)],
+            Action::Swerve {
+                amplitude, period, ..
+            } => vec![("amplitude", *amplitude), ("period", *period)],
+            Action::Brake {
+                decel,
+                jerk,
+                min_speed,
+            } => vec![
+                ("decel", *decel),
+                ("jerk", *jerk),
+                ("min_speed", *min_speed),
+            ],
+            Action::Accelerate { accel, max_speed } => {
+                vec![("accel", *accel), ("max_speed", *max_speed)]
+            }
+            Action::Cruise { speed } => vec![("speed", *speed)],
+            Action::FollowTarget {
+                time_gap,
+                max_speed,
+            } => vec![("time_gap", *time_gap), ("max_speed", *max_speed)],
+        };
+        out.extend(action.into_iter().map(|(f, r)| (format!("action.{f}"), r)));
+        out
+    }
+
     /// Draws the concrete phase; every value is recorded as `name.trigger.<field>` or
     /// `name.action.<field>`.
     pub fn sample(&self, sampler: &mut Sampler, name: &str) -> Phase<f64> {

@@ -239,6 +239,13 @@ impl ConcreteScenario {
         atomic_write(path, self.to_json()?.as_bytes())
     }
 
+    /// Refuses a scenario whose recorded `reference` is not what simulating it with the
+    /// reference driver gives (the file was edited after it was generated). One rollout, so
+    /// it is done where scenarios are loaded for use rather than at every parse.
+    pub fn check_reference(&self, source: &str) -> Result<()> {
+        super::labels::check_reference(self, source)
+    }
+
     pub fn from_json_file(path: &Path) -> Result<Self> {
         let text = crate::io::read_text(path, crate::io::Format::Scenario)?;
         Self::from_json_str(&text, &path.display().to_string())
@@ -257,7 +264,8 @@ impl ConcreteScenario {
     }
 
     /// Checks of a loaded file: indices in range, history lengths, physical values (vehicle
-    /// sizes, finite positions, headings in radians, speeds), and the map's parameters.
+    /// sizes, finite positions, headings in radians, speeds), the map's parameters, and labels
+    /// that agree with the content ([`super::labels`]).
     fn check(&self, source: &str) -> Result<()> {
         if !(1..=MAX_HISTORY_STEPS).contains(&self.history_steps) {
             return Err(Error::invalid(
@@ -341,7 +349,7 @@ impl ConcreteScenario {
         let map = Map::from_opendrive(&od, source)?;
         super::sample::check_initial(&map, &self.agents)
             .map_err(|why| Error::invalid(source, "agents", why))?;
-        Ok(())
+        super::labels::check_labels(self, source)
     }
 
     /// Each hero drives another agent, with phases in the family files' bounds.

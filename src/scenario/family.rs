@@ -165,6 +165,48 @@ fn default_duration() -> f64 {
 }
 
 impl LogicalScenario {
+    /// Every value a concrete scenario of this family draws, by the name it is recorded under
+    /// in the scenario's `parameters`, with the range it is drawn from (the sampler's naming:
+    /// `map.*`, `target.*`, `heroes[h].*`, `background.*`).
+    pub fn drawn_ranges(&self) -> BTreeMap<String, Range> {
+        let mut out: BTreeMap<String, Range> = BTreeMap::new();
+        for (key, range) in &self.map.params {
+            out.insert(format!("map.{key}"), *range);
+        }
+        let t = &self.target;
+        out.insert("target.station".into(), t.station);
+        out.insert("target.speed_quantile".into(), t.speed_band);
+        let optional = [
+            ("target.speed", t.speed),
+            ("target.lateral_offset", t.lateral_offset),
+            ("target.heading_error", t.heading_error),
+        ];
+        out.extend(
+            optional
+                .into_iter()
+                .filter_map(|(n, r)| Some((n.to_string(), r?))),
+        );
+        for (h, hero) in self.heroes.iter().enumerate() {
+            let name = format!("heroes[{h}]");
+            out.insert(format!("{name}.station_offset"), hero.station_offset);
+            match (hero.speed, hero.speed_offset) {
+                (Some(r), _) => out.insert(format!("{name}.speed"), r),
+                (None, Some(r)) => out.insert(format!("{name}.speed_offset"), r),
+                (None, None) => None,
+            };
+            for (p, phase) in hero.phases.iter().enumerate() {
+                for (field, range) in phase.ranges() {
+                    out.insert(format!("{name}.phases[{p}].{field}"), range);
+                }
+            }
+        }
+        out.insert(
+            "background.headway_quantile".into(),
+            self.background.headway_band,
+        );
+        out
+    }
+
     pub fn from_toml_str(text: &str, source_name: &str) -> Result<Self> {
         let family: Self = parse_toml(text, source_name)?;
         family

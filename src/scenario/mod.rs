@@ -10,6 +10,7 @@ mod catalogue;
 mod concrete;
 mod family;
 mod hero;
+mod labels;
 mod placement;
 mod range;
 mod sample;

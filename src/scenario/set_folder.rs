@@ -3,12 +3,13 @@
 //! trained on, so a file that does not belong there would change the result unseen. Refused:
 //! a hidden `.json` (the leftover of an interrupted write), a scenario labelled with another
 //! set than its folder, the same scenario twice under two names (also with its states nudged:
-//! the same draw of the same family), and a scenario of another set (a training scenario
-//! copied into `eval/`).
+//! the same draw of the same family), a scenario of another set (a training scenario copied
+//! into `eval/`), and a scenario whose recorded reference run is not what simulating it gives.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+use rayon::prelude::*;
 use sha2::{Digest, Sha256};
 
 use super::{ConcreteScenario, ScenarioSet};
@@ -20,8 +21,8 @@ pub fn load_scenario_set(root: &Path, set: ScenarioSet) -> Result<Vec<ConcreteSc
     let paths = scenario_files(&dir)?;
     let mut seen: BTreeMap<String, PathBuf> = BTreeMap::new();
     let mut scenarios = Vec::with_capacity(paths.len());
-    for path in paths {
-        let scenario = ConcreteScenario::from_json_file(&path)?;
+    for path in &paths {
+        let scenario = ConcreteScenario::from_json_file(path)?;
         if scenario.set != set {
             return Err(Error::invalid(
                 path.display().to_string(),
@@ -37,12 +38,17 @@ pub fn load_scenario_set(root: &Path, set: ScenarioSet) -> Result<Vec<ConcreteSc
         }
         for key in identities(&scenario)? {
             if let Some(first) = seen.insert(key, path.clone()) {
-                return Err(duplicate(&path, &first));
+                return Err(duplicate(path, &first));
             }
         }
         scenarios.push(scenario);
     }
     refuse_other_sets(root, set, &seen)?;
+    // The rollouts that check each `reference` are independent: in parallel.
+    scenarios
+        .par_iter()
+        .zip(&paths)
+        .try_for_each(|(scenario, path)| scenario.check_reference(&path.display().to_string()))?;
     Ok(scenarios)
 }
 

@@ -120,6 +120,7 @@ pub(super) fn source(args: &RenderArgs) -> Result<Source> {
     if let Some(path) = &args.scenario {
         rtr::io::check_input_file(path, "--scenario")?;
         let scenario = ConcreteScenario::from_json_file(path)?;
+        scenario.check_reference(&path.display().to_string())?;
         return Ok(Source::Scenario(Box::new(scenario)));
     }
     if let Some(path) = &args.commonroad {
