@@ -451,7 +451,11 @@ fn a_run_file_names_a_dynamics_file_relative_to_itself() {
         ),
         (
             "feature = { power_limit = { specific_power_w_kg = nan } }\ncoefficient = -1.0",
-            "expected a power over mass",
+            "expected a limit > 0",
+        ),
+        (
+            "feature = { brake_limit = { decel_m_s2 = 0.0 } }\ncoefficient = -1.0",
+            "brake_limit.decel_m_s2",
         ),
     ] {
         std::fs::write(
@@ -472,7 +476,10 @@ fn a_run_file_names_a_dynamics_file_relative_to_itself() {
     )
     .expect("written");
     let message = DynamicsFile::load(&path).expect_err("heading").to_string();
-    assert!(message.contains("dtheta/dt library"), "{message}");
+    assert!(
+        message.contains("dtheta/dt library") && message.contains("steer_limit"),
+        "{message}"
+    );
 }
 
 #[test]

@@ -221,15 +221,13 @@ impl DynamicsFile {
     pub fn validate(&self, source: &str) -> Result<()> {
         for (k, term) in self.discovered.iter().enumerate() {
             let place = format!("discovered[{k}]");
-            if let Feature::PowerLimit {
-                specific_power_w_kg,
-            } = term.feature
-                && !(specific_power_w_kg.is_finite() && specific_power_w_kg > 0.0)
+            if let Some((_, parameter, value)) = term.feature.limit()
+                && !(value.is_finite() && value > 0.0)
             {
                 return Err(Error::invalid(
                     source,
-                    format!("{place}.feature.power_limit.specific_power_w_kg"),
-                    format!("{specific_power_w_kg}: expected a power over mass in W/kg, > 0"),
+                    format!("{place}.feature.{}.{parameter}", term.feature.name()),
+                    format!("{value}: expected a limit > 0"),
                 ));
             }
             if !term.feature.is_in_library(term.equation) {
@@ -237,11 +235,14 @@ impl DynamicsFile {
                     .iter()
                     .map(|f| f.symbol())
                     .collect();
-                if term.equation == Equation::Speed {
-                    names.push(
-                        "max(u - p / v, 0) (feature = { power_limit = { specific_power_w_kg = p } })"
-                            .into(),
-                    );
+                // A limit kind once, spelt as a dynamics file writes it.
+                for grid in Feature::limit_grids(term.equation) {
+                    if let Some((_, parameter, _)) = grid.first().and_then(|f| f.limit()) {
+                        let name = grid[0].name();
+                        names.push(format!(
+                            "{name} (feature = {{ {name} = {{ {parameter} = x }} }})"
+                        ));
+                    }
                 }
                 return Err(Error::invalid(
                     source,

@@ -58,14 +58,39 @@ pub enum Feature {
     KappaV2,
     /// max(u - p / v, 0): the command above a limit that tightens with speed, as an engine's
     /// power caps the acceleration at power / (mass x speed); `p` in W/kg (m^2/s^3). The
-    /// limit is chosen from the data ([`Feature::power_limit_grid`]); with coefficient -1 the
+    /// limit is chosen from the data ([`Feature::limit_grids`]); with coefficient -1 the
     /// acceleration is capped at p / v.
     PowerLimit { specific_power_w_kg: f64 },
+    /// 1 / v: a force that falls with speed as a constant tractive power's does.
+    InvV,
+    /// max(u - a, 0): the throttle above a fixed cap; with coefficient -1 the acceleration
+    /// saturates at `a` (m/s^2), as a powertrain's or a controller's limit does.
+    AccelLimit { accel_m_s2: f64 },
+    /// min(u + b, 0): braking beyond a fixed deceleration; with coefficient -1 the brakes
+    /// saturate at `b` (m/s^2).
+    BrakeLimit { decel_m_s2: f64 },
+    /// v (tan(phi) - tan(clamp(phi, -a, a))): steering beyond an angle `a` (rad); with
+    /// coefficient -1 / L the road wheels stop at `a`, a steering rack's end stop or an
+    /// actuator's saturation.
+    SteerLimit { angle_rad: f64 },
 }
 
 /// Speeds below this (m/s) count as this in `p / v`: at a standstill the limit is far above any
 /// command anyway.
 const POWER_LIMIT_MIN_SPEED_M_S: f64 = 0.1;
+/// Speeds below this (m/s) count as this in `1 / v`, which would otherwise grow without bound
+/// at a standstill, where discovery takes no samples.
+const INV_V_MIN_SPEED_M_S: f64 = 1.0;
+
+/// What a limit term's coefficient means: -1 cuts everything beyond the limit.
+fn limit_meaning(coefficient: f64, beyond: &str) -> String {
+    let pct = 100.0 * coefficient.abs();
+    if coefficient < 0.0 {
+        format!("{beyond} is cut by {pct:.0} % (a saturating actuator)")
+    } else {
+        format!("{beyond} acts {pct:.0} % more")
+    }
+}
 
 impl Feature {
     /// The library of each equation.
@@ -75,12 +100,16 @@ impl Feature {
                 Feature::One,
                 Feature::V,
                 Feature::V2,
+                Feature::InvV,
                 Feature::U,
                 Feature::UBrake,
                 Feature::VU,
             ],
+            // v: a steering command biased by b rad turns at v tan(phi + b) / L, which is
+            // v tan(phi) / L + (b / L) v to first order.
             Equation::HeadingRate => &[
                 Feature::One,
+                Feature::V,
                 Feature::TanPhi,
                 Feature::KappaV,
                 Feature::KappaV2,
@@ -88,33 +117,81 @@ impl Feature {
         }
     }
 
-    /// The limits [`Feature::PowerLimit`] is tried at, W/kg: 2 to 400 in steps of 5 %, from
-    /// a laden lorry's to a sports car's power over mass.
-    pub fn power_limit_grid() -> impl Iterator<Item = Feature> {
-        (0..110).map(|k| Feature::PowerLimit {
-            specific_power_w_kg: 2.0 * 1.05f64.powi(k),
-        })
+    /// The library's terms with a parameter that enters non-linearly (a limit), one grid of
+    /// values per kind: discovery picks each kind's best value by a search over its grid.
+    /// Grids step by 5 % over what road vehicles span.
+    pub fn limit_grids(equation: Equation) -> Vec<Vec<Feature>> {
+        let grid = |from: f64, steps: i32| (0..steps).map(move |k| from * 1.05f64.powi(k));
+        match equation {
+            // Power over mass from a laden lorry's 2 W/kg to a sports car's 400; throttle caps
+            // of 0.5 to 5.7 m/s^2; brake caps of 1 to 11.5 m/s^2.
+            Equation::Speed => vec![
+                grid(2.0, 110)
+                    .map(|p| Feature::PowerLimit {
+                        specific_power_w_kg: p,
+                    })
+                    .collect(),
+                grid(0.5, 51)
+                    .map(|a| Feature::AccelLimit { accel_m_s2: a })
+                    .collect(),
+                grid(1.0, 51)
+                    .map(|b| Feature::BrakeLimit { decel_m_s2: b })
+                    .collect(),
+            ],
+            // Road-wheel stops from 0.01 rad (a motorway's steering stays near there) to 0.6.
+            Equation::HeadingRate => vec![
+                grid(0.01, 85)
+                    .map(|a| Feature::SteerLimit { angle_rad: a })
+                    .collect(),
+            ],
+        }
     }
 
-    /// Whether `self` is a term of `equation`'s library (a power limit at any positive,
-    /// finite specific power).
-    pub fn is_in_library(self, equation: Equation) -> bool {
+    /// The equation a limit term belongs to and its parameter's name and value; `None` for
+    /// the terms without a parameter.
+    pub fn limit(self) -> Option<(Equation, &'static str, f64)> {
         match self {
             Feature::PowerLimit {
                 specific_power_w_kg,
-            } => {
-                equation == Equation::Speed
-                    && specific_power_w_kg.is_finite()
-                    && specific_power_w_kg > 0.0
+            } => Some((Equation::Speed, "specific_power_w_kg", specific_power_w_kg)),
+            Feature::AccelLimit { accel_m_s2 } => Some((Equation::Speed, "accel_m_s2", accel_m_s2)),
+            Feature::BrakeLimit { decel_m_s2 } => Some((Equation::Speed, "decel_m_s2", decel_m_s2)),
+            Feature::SteerLimit { angle_rad } => {
+                Some((Equation::HeadingRate, "angle_rad", angle_rad))
             }
-            f => Feature::library(equation).contains(&f),
+            _ => None,
+        }
+    }
+
+    /// The same kind of limit at `value`; a term without a limit is returned as it is.
+    pub fn with_limit(self, value: f64) -> Feature {
+        match self {
+            Feature::PowerLimit { .. } => Feature::PowerLimit {
+                specific_power_w_kg: value,
+            },
+            Feature::AccelLimit { .. } => Feature::AccelLimit { accel_m_s2: value },
+            Feature::BrakeLimit { .. } => Feature::BrakeLimit { decel_m_s2: value },
+            Feature::SteerLimit { .. } => Feature::SteerLimit { angle_rad: value },
+            other => other,
+        }
+    }
+
+    /// Whether `self` is a term of `equation`'s library (a limit at any positive, finite
+    /// value).
+    pub fn is_in_library(self, equation: Equation) -> bool {
+        match self.limit() {
+            Some((own, _, value)) => own == equation && value.is_finite() && value > 0.0,
+            None => Feature::library(equation).contains(&self),
         }
     }
 
     /// Whether the feature involves a command (so it cannot be identified when the commands
     /// were inferred from the motion itself).
     pub fn involves_commands(self) -> bool {
-        !matches!(self, Feature::One | Feature::V | Feature::V2)
+        !matches!(
+            self,
+            Feature::One | Feature::V | Feature::V2 | Feature::InvV
+        )
     }
 
     /// The feature's kind, as dynamics files spell it (a power limit without its value).
@@ -130,6 +207,10 @@ impl Feature {
             Feature::KappaV => "kappa_v",
             Feature::KappaV2 => "kappa_v2",
             Feature::PowerLimit { .. } => "power_limit",
+            Feature::InvV => "inv_v",
+            Feature::AccelLimit { .. } => "accel_limit",
+            Feature::BrakeLimit { .. } => "brake_limit",
+            Feature::SteerLimit { .. } => "steer_limit",
         }
     }
 
@@ -147,6 +228,12 @@ impl Feature {
             Feature::PowerLimit {
                 specific_power_w_kg,
             } => format!("max(u - {specific_power_w_kg:.1} / v, 0)"),
+            Feature::InvV => "1 / v".into(),
+            Feature::AccelLimit { accel_m_s2 } => format!("max(u - {accel_m_s2:.2}, 0)"),
+            Feature::BrakeLimit { decel_m_s2 } => format!("min(u + {decel_m_s2:.2}, 0)"),
+            Feature::SteerLimit { angle_rad } => {
+                format!("v (tan(phi) - tan(clamp(phi, +-{angle_rad:.3})))")
+            }
         }
     }
 
@@ -210,6 +297,34 @@ impl Feature {
                     )
                 }
             }
+            (Equation::Speed, Feature::InvV) => {
+                "an acceleration inversely proportional to speed (a constant tractive power)".into()
+            }
+            (Equation::Speed, Feature::AccelLimit { accel_m_s2 }) => limit_meaning(
+                coefficient,
+                &format!("throttle above {accel_m_s2:.2} m/s^2"),
+            ),
+            (Equation::Speed, Feature::BrakeLimit { decel_m_s2 }) => limit_meaning(
+                coefficient,
+                &format!("braking beyond {decel_m_s2:.2} m/s^2"),
+            ),
+            (Equation::HeadingRate, Feature::V) => {
+                "a yaw rate that grows with speed at zero steering (a steering-command bias: the \
+                 wheels point off centre)"
+                    .into()
+            }
+            (Equation::HeadingRate, Feature::SteerLimit { angle_rad }) => {
+                if coefficient < 0.0 {
+                    format!(
+                        "steering beyond {angle_rad:.3} rad turns the vehicle less than commanded \
+                         (a saturated steering actuator)"
+                    )
+                } else {
+                    format!(
+                        "steering beyond {angle_rad:.3} rad turns the vehicle more than commanded"
+                    )
+                }
+            }
             (_, f) => format!("a term in {}", f.symbol()),
         }
     }
@@ -230,6 +345,10 @@ impl Feature {
             Feature::PowerLimit {
                 specific_power_w_kg,
             } => (u - specific_power_w_kg / v.max(POWER_LIMIT_MIN_SPEED_M_S)).max(0.0),
+            Feature::InvV => 1.0 / v.max(INV_V_MIN_SPEED_M_S),
+            Feature::AccelLimit { accel_m_s2 } => (u - accel_m_s2).max(0.0),
+            Feature::BrakeLimit { decel_m_s2 } => (u + decel_m_s2).min(0.0),
+            Feature::SteerLimit { angle_rad } => v * (tan - phi.clamp(-angle_rad, angle_rad).tan()),
         }
     }
 
@@ -256,6 +375,13 @@ impl Feature {
                     .recip()
                     .mul_scalar(specific_power_w_kg);
                 (u - limit).clamp_min(0.0)
+            }
+            Feature::InvV => v.clamp_min(INV_V_MIN_SPEED_M_S).recip(),
+            Feature::AccelLimit { accel_m_s2 } => u.sub_scalar(accel_m_s2).clamp_min(0.0),
+            Feature::BrakeLimit { decel_m_s2 } => u.add_scalar(decel_m_s2).clamp_max(0.0),
+            Feature::SteerLimit { angle_rad } => {
+                let phi = input.controls.steer.clone();
+                v * (tan() - phi.clamp(-angle_rad, angle_rad).tan())
             }
         }
     }
@@ -329,9 +455,14 @@ mod tests {
         ] {
             let plain = step(Dynamics::bicycle(0.5), u);
             let mut features = Feature::library(equation).to_vec();
-            if equation == Equation::Speed {
-                features.push(limit);
-            }
+            // Limits that the tried (u, phi) exceed.
+            let limits = [
+                limit,
+                Feature::AccelLimit { accel_m_s2: 1.0 },
+                Feature::BrakeLimit { decel_m_s2: 1.0 },
+                Feature::SteerLimit { angle_rad: 0.02 },
+            ];
+            features.extend(limits.into_iter().filter(|f| f.is_in_library(equation)));
             for feature in features {
                 let next = step(
                     Dynamics::bicycle(0.5).with_term(Box::new(LibraryTerm {

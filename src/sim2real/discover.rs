@@ -100,14 +100,26 @@ pub fn discover(
             .filter(|f| !(commands_inferred && f.involves_commands()))
             .collect()
     };
-    let mut speed_library = library(Equation::Speed);
-    if !commands_inferred && let Some(limit) = best_power_limit(&speed_library, &fit_set) {
-        speed_library.push(limit);
-    }
-    let (speed, _) = select(Equation::Speed, &speed_library, &fit_set, &check_set);
+    let with_limits = |equation| -> Vec<Feature> {
+        let mut features = library(equation);
+        if !commands_inferred {
+            let limits: Vec<Feature> = Feature::limit_grids(equation)
+                .iter()
+                .filter_map(|grid| best_limit(equation, &features, grid, &fit_set))
+                .collect();
+            features.extend(limits);
+        }
+        features
+    };
+    let (speed, _) = select(
+        Equation::Speed,
+        &with_limits(Equation::Speed),
+        &fit_set,
+        &check_set,
+    );
     let (heading, kappa) = select(
         Equation::HeadingRate,
-        &library(Equation::HeadingRate),
+        &with_limits(Equation::HeadingRate),
         &fit_set,
         &check_set,
     );
@@ -162,27 +174,65 @@ fn samples(
     out
 }
 
-/// The power limit ([`Feature::PowerLimit`]) whose column, beside `library`'s, fits the speed
-/// residual of `train` best by least squares; none when no limit tried is exceeded by enough
-/// samples to estimate it. Its one parameter enters a term non-linearly, so it is chosen here
-/// by a search over [`Feature::power_limit_grid`] and the selection then treats the column
+/// The limit of `grid`'s kind (one of [`Feature::limit_grids`]) whose column, beside
+/// `library`'s, fits `equation`'s residual on `train` best by least squares; none when no
+/// limit tried is exceeded by enough samples to estimate it. A limit enters its term
+/// non-linearly, so it is found here by a search (the grid, then a golden-section refinement
+/// between the best point's neighbours: a limit off by part of a grid step would leave a
+/// residual that small spurious terms then absorb) and the selection then treats the column
 /// like any other.
-fn best_power_limit(library: &[Feature], train: &[Sample]) -> Option<Feature> {
-    let (x, y) = design(Equation::Speed, library, train);
-    Feature::power_limit_grid()
-        .filter_map(|limit| {
-            let column: Vec<f64> = train.iter().map(|s| limit.value(s.v, s.u, s.phi)).collect();
-            if column.iter().filter(|c| **c > 0.0).count() < MIN_SAMPLES_PER_TERM {
-                return None;
-            }
-            let mut with = x.clone().insert_column(x.ncols(), 0.0);
-            with.set_column(x.ncols(), &DVector::from_vec(column));
-            let coef = stlsq(&with, &y, 0.0, 0);
-            let residual = (&y - &with * DVector::from_vec(coef)).norm_squared();
-            Some((residual, limit))
-        })
-        .min_by(|a, b| a.0.total_cmp(&b.0))
-        .map(|(_, limit)| limit)
+fn best_limit(
+    equation: Equation,
+    library: &[Feature],
+    grid: &[Feature],
+    train: &[Sample],
+) -> Option<Feature> {
+    let (x, y) = design(equation, library, train);
+    let misfit = |limit: Feature| -> Option<f64> {
+        let column: Vec<f64> = train.iter().map(|s| limit.value(s.v, s.u, s.phi)).collect();
+        if column.iter().filter(|c| **c != 0.0).count() < MIN_SAMPLES_PER_TERM {
+            return None;
+        }
+        let mut with = x.clone().insert_column(x.ncols(), 0.0);
+        with.set_column(x.ncols(), &DVector::from_vec(column));
+        let coef = stlsq(&with, &y, 0.0, 0);
+        Some((&y - &with * DVector::from_vec(coef)).norm_squared())
+    };
+    let (best, _) = grid
+        .iter()
+        .enumerate()
+        .filter_map(|(k, &limit)| Some((k, misfit(limit)?)))
+        .min_by(|a, b| a.1.total_cmp(&b.1))?;
+    let value = |k: usize| grid[k].limit().map_or(f64::NAN, |(_, _, v)| v);
+    let (low, high) = (
+        value(best.saturating_sub(1)),
+        value((best + 1).min(grid.len() - 1)),
+    );
+    let at = |v: f64| grid[best].with_limit(v);
+    let refined = golden_section(low, high, |v| misfit(at(v)).unwrap_or(f64::INFINITY));
+    Some(at(refined))
+}
+
+/// The minimum of `f` on [low, high] by golden-section search (f unimodal there), to a
+/// relative width of 1e-4.
+fn golden_section(mut low: f64, mut high: f64, f: impl Fn(f64) -> f64) -> f64 {
+    let ratio = (5f64.sqrt() - 1.0) / 2.0;
+    let (mut a, mut b) = (high - ratio * (high - low), low + ratio * (high - low));
+    let (mut fa, mut fb) = (f(a), f(b));
+    while high - low > 1e-4 * high.abs().max(1e-9) {
+        if fa <= fb {
+            high = b;
+            (b, fb) = (a, fa);
+            a = high - ratio * (high - low);
+            fa = f(a);
+        } else {
+            low = a;
+            (a, fa) = (b, fb);
+            b = low + ratio * (high - low);
+            fb = f(b);
+        }
+    }
+    (low + high) / 2.0
 }
 
 /// Nuisance columns ahead of the library: the heading equation's `v tan(phi)` (a wheelbase
@@ -351,12 +401,48 @@ mod tests {
         select(Equation::Speed, library, &train, &heldout).0
     }
 
-    /// [`select_speed`] with the best power limit added to the library, as [`discover`] does.
+    /// [`select_speed`] with each kind's best limit added to the library, as [`discover`] does.
     fn select_speed_with_limit(residual: impl Fn(f64, f64, usize) -> f64) -> EquationFit {
         let (train, heldout) = speed_samples(residual);
-        let mut library = Feature::library(Equation::Speed).to_vec();
-        library.extend(best_power_limit(&library, &train));
-        select(Equation::Speed, &library, &train, &heldout).0
+        select_with_limits(Equation::Speed, &train, &heldout)
+    }
+
+    fn select_with_limits(equation: Equation, train: &[Sample], heldout: &[Sample]) -> EquationFit {
+        let mut library = Feature::library(equation).to_vec();
+        let limits: Vec<Feature> = Feature::limit_grids(equation)
+            .iter()
+            .filter_map(|grid| best_limit(equation, &library, grid, train))
+            .collect();
+        library.extend(limits);
+        select(equation, &library, train, heldout).0
+    }
+
+    /// 400 samples over varied v and phi on 4 tracks (wheelbase 2.8 m), with
+    /// `residual(v, phi, i)` as the heading-rate residual; selected with track 3 held out.
+    fn select_heading(residual: impl Fn(f64, f64, usize) -> f64) -> EquationFit {
+        let (train, heldout): (Vec<Sample>, Vec<Sample>) = (0..400)
+            .map(|i| {
+                let v = 2.0 + (i % 37) as f64;
+                let phi = ((i * 7919) % 101) as f64 / 101.0 * 0.12 - 0.06;
+                Sample {
+                    track: i % 4,
+                    v,
+                    u: 0.0,
+                    phi,
+                    speed_residual: 0.0,
+                    heading_residual: residual(v, phi, i),
+                }
+            })
+            .partition(|s| s.track != 3);
+        select_with_limits(Equation::HeadingRate, &train, &heldout)
+    }
+
+    /// The one term of `fit`, or a failure naming what was selected.
+    fn single_term(fit: &EquationFit) -> (Feature, f64) {
+        match fit.terms[..] {
+            [term] => term,
+            _ => panic!("one term expected: {fit:?}"),
+        }
     }
 
     /// The training and held-out samples of [`select_speed`].
@@ -378,9 +464,10 @@ mod tests {
         samples.into_iter().partition(|s| s.track != 3)
     }
 
-    /// Deterministic noise in [-0.5, 0.5) x `scale`.
+    /// Deterministic noise in [-0.5, 0.5) x `scale`, independent across samples (a hash of `i`).
     fn noise(i: usize, scale: f64) -> f64 {
-        (((i * 104729) % 1000) as f64 / 1000.0 - 0.5) * scale
+        let mut state = i as u64;
+        crate::test_rng::uniform(&mut state, -0.5, 0.5) * scale
     }
 
     #[test]
@@ -394,10 +481,17 @@ mod tests {
 
     #[test]
     fn pure_noise_selects_nothing() {
-        let fit = select_speed(|_, _, i| noise(i, 0.2));
-        assert!(fit.terms.is_empty(), "{fit:?}");
-        let fit = select_speed_with_limit(|_, _, i| noise(i, 0.2));
-        assert!(fit.terms.is_empty(), "{fit:?}");
+        // Twenty noise draws: the limits' searches fit each draw's noise as well as they can,
+        // and the held-out rule must still keep nothing.
+        for draw in 0..20 {
+            let at = |i: usize| i + 400 * draw;
+            let fit = select_speed(|_, _, i| noise(at(i), 0.2));
+            assert!(fit.terms.is_empty(), "draw {draw}: {fit:?}");
+            let fit = select_speed_with_limit(|_, _, i| noise(at(i), 0.2));
+            assert!(fit.terms.is_empty(), "draw {draw}: {fit:?}");
+            let fit = select_heading(|_, _, i| noise(at(i), 0.002));
+            assert!(fit.terms.is_empty(), "draw {draw}: {fit:?}");
+        }
     }
 
     /// An acceleration capped at 20 / v: the limit is found within the grid's 5 % step and
@@ -405,9 +499,7 @@ mod tests {
     #[test]
     fn a_power_limit_is_found_with_its_limit_and_selected_alone() {
         let fit = select_speed_with_limit(|v, u, i| -(u - 20.0 / v).max(0.0) + noise(i, 0.02));
-        let [(feature, coefficient)] = fit.terms[..] else {
-            panic!("one term expected: {fit:?}");
-        };
+        let (feature, coefficient) = single_term(&fit);
         let Feature::PowerLimit {
             specific_power_w_kg,
         } = feature
@@ -416,6 +508,50 @@ mod tests {
         };
         assert!((specific_power_w_kg / 20.0 - 1.0).abs() <= 0.05, "{fit:?}");
         assert!((coefficient + 1.0).abs() <= 0.1, "{fit:?}");
+    }
+
+    /// Throttle capped at 1.5 m/s^2 and braking at 2.5: each saturation is found with its
+    /// limit and selected alone, with coefficient -1.
+    #[test]
+    fn command_saturations_are_found_with_their_limits() {
+        let fit = select_speed_with_limit(|_, u, i| -(u - 1.5).max(0.0) + noise(i, 0.02));
+        let (Feature::AccelLimit { accel_m_s2 }, coefficient) = single_term(&fit) else {
+            panic!("a throttle cap expected: {fit:?}");
+        };
+        assert!((accel_m_s2 / 1.5 - 1.0).abs() <= 0.05, "{fit:?}");
+        assert!((coefficient + 1.0).abs() <= 0.1, "{fit:?}");
+
+        let fit = select_speed_with_limit(|_, u, i| -(u + 2.5).min(0.0) + noise(i, 0.02));
+        let (Feature::BrakeLimit { decel_m_s2 }, coefficient) = single_term(&fit) else {
+            panic!("a brake cap expected: {fit:?}");
+        };
+        assert!((decel_m_s2 / 2.5 - 1.0).abs() <= 0.05, "{fit:?}");
+        assert!((coefficient + 1.0).abs() <= 0.1, "{fit:?}");
+    }
+
+    /// A steering command biased by 0.01 rad (yaw rate v tan(phi + 0.01) / L) is a term in v;
+    /// road wheels that stop at 0.03 rad are a steering limit there, with coefficient -1 / L.
+    #[test]
+    fn a_steering_bias_and_a_steering_stop_are_told_apart() {
+        let wheelbase = 2.8;
+        let fit = select_heading(|v, phi, i| {
+            v * ((phi + 0.01).tan() - phi.tan()) / wheelbase + noise(i, 0.002)
+        });
+        let (feature, coefficient) = single_term(&fit);
+        assert_eq!(feature, Feature::V, "{fit:?}");
+        assert!(
+            (coefficient * wheelbase / 0.01 - 1.0).abs() < 0.05,
+            "{fit:?}"
+        );
+
+        let fit = select_heading(|v, phi, i| {
+            v * (phi.clamp(-0.03, 0.03).tan() - phi.tan()) / wheelbase + noise(i, 0.002)
+        });
+        let (Feature::SteerLimit { angle_rad }, coefficient) = single_term(&fit) else {
+            panic!("a steering stop expected: {fit:?}");
+        };
+        assert!((angle_rad / 0.03 - 1.0).abs() <= 0.05, "{fit:?}");
+        assert!((coefficient * wheelbase + 1.0).abs() < 0.1, "{fit:?}");
     }
 
     #[test]
