@@ -469,6 +469,46 @@ fn inputs_that_are_not_regular_files_are_refused_without_blocking() {
     ] {
         assert_refused(&args, &[flag, "device"]);
     }
+    // A folder where a file is expected, a link that loops, and a FIFO named in a run file:
+    // each named by its flag or field, and called what it is.
+    let folder = dir.path().join("folder");
+    std::fs::create_dir_all(&folder).expect("mkdir");
+    let loop_link = dir.path().join("loop.xodr");
+    std::os::unix::fs::symlink(&loop_link, &loop_link).expect("symlink");
+    let run_file = dir.path().join("curated.toml");
+    std::fs::write(
+        &run_file,
+        format!("method = \"IL\"\n[data]\ncurated = {pipe:?}\n"),
+    )
+    .expect("write");
+    let config = "experiments/main/il.toml";
+    let folder = folder.to_str().expect("UTF-8 path");
+    let loop_link = loop_link.to_str().expect("UTF-8 path");
+    let run_file = run_file.to_str().expect("UTF-8 path");
+    for (args, expected) in [
+        (
+            vec![
+                "train",
+                "--config",
+                config,
+                "--dynamics",
+                folder,
+                "--out",
+                out,
+            ],
+            ["--dynamics", "is a folder"],
+        ),
+        (
+            vec!["map", "summary", "--xodr", loop_link],
+            ["--xodr", "symlink loop"],
+        ),
+        (
+            vec!["train", "--config", run_file, "--out", out],
+            ["data.curated", "FIFO"],
+        ),
+    ] {
+        assert_refused(&args, &expected);
+    }
 }
 
 #[test]
@@ -569,11 +609,40 @@ fn an_output_that_is_or_holds_or_lies_in_an_input_is_refused() {
             ],
             "is the input --xodr",
         ),
+        // The same place spelt through a folder that does not exist and `..`.
+        (
+            vec![
+                "sim2real".into(),
+                "--recordings".into(),
+                path(&recordings),
+                "--report".into(),
+                path(&dir.path().join("absent").join("..").join("tracks.csv")),
+            ],
+            "is the input --recordings",
+        ),
+        (
+            vec![
+                "eval".into(),
+                "--checkpoint".into(),
+                "models/il_main".into(),
+                "--set".into(),
+                "longtail".into(),
+                "--scenarios".into(),
+                path(&scenarios),
+                "--out".into(),
+                path(&scenarios.join("absent/../eval/results")),
+            ],
+            "lies inside the input --scenarios",
+        ),
     ];
     for (args, expected) in cases {
         let args: Vec<&str> = args.iter().map(String::as_str).collect();
         assert_refused(&args, &[expected]);
     }
+    assert!(
+        !dir.path().join("absent").exists() && !scenarios.join("absent").exists(),
+        "a refused output leaves no folder behind"
+    );
     assert_eq!(
         std::fs::read_to_string(&run_file).expect("the run file"),
         "method = \"IL\"\n"
@@ -646,6 +715,32 @@ fn a_second_writer_of_a_folder_is_refused_naming_the_first() {
             out_str,
         ],
         &["another rtr process", &pid],
+    );
+    // Inside the claimed folder, a file or a folder of another command is refused too: the
+    // first writer replaces its folder whole when it ends.
+    let inside = out.join("train");
+    assert_refused(
+        &[
+            "recordings",
+            "generate",
+            "--effect",
+            "none",
+            "--tracks",
+            "3",
+            "--out",
+            inside.join("zz.json").to_str().expect("UTF-8 path"),
+        ],
+        &["lies inside", "another rtr process", &pid],
+    );
+    assert_refused(
+        &[
+            "train",
+            "--config",
+            "experiments/main/il.toml",
+            "--out",
+            inside.to_str().expect("UTF-8 path"),
+        ],
+        &["lies inside", "another rtr process", &pid],
     );
 }
 
@@ -757,23 +852,28 @@ fn a_scenario_folder_is_checked_as_a_set() {
         files.sort();
         files[0].clone()
     };
+    // A scenario as JSON without its digest: edited copies below are hand-made files, so the
+    // checks behind the digest are what must refuse them.
+    let unstamped = |bytes: &[u8]| {
+        let mut v: serde_json::Value = serde_json::from_slice(bytes).expect("JSON");
+        v.as_object_mut().expect("object").remove("content_sha256");
+        v
+    };
     let relabelled = |path: &Path, set: &str| {
-        let mut v: serde_json::Value =
-            serde_json::from_slice(&std::fs::read(path).expect("read")).expect("JSON");
+        let mut v = unstamped(&std::fs::read(path).expect("read"));
         v["set"] = serde_json::Value::String(set.into());
         v["index"] = serde_json::json!(99);
         serde_json::to_vec_pretty(&v).expect("JSON")
     };
     let relabelled_bytes = |bytes: &[u8], set: &str| {
-        let mut v: serde_json::Value = serde_json::from_slice(bytes).expect("JSON");
+        let mut v = unstamped(bytes);
         v["set"] = serde_json::Value::String(set.into());
         v["index"] = serde_json::json!(98);
         serde_json::to_vec_pretty(&v).expect("JSON")
     };
     // The same draw with every state's x moved by `dx` metres and a new seed.
     let nudged = |path: &Path, dx: f64| {
-        let mut v: serde_json::Value =
-            serde_json::from_slice(&std::fs::read(path).expect("read")).expect("JSON");
+        let mut v = unstamped(&std::fs::read(path).expect("read"));
         v["seed"] = serde_json::json!(12345);
         for agent in v["agents"].as_array_mut().expect("agents") {
             for state in agent["states"].as_array_mut().expect("states") {
@@ -786,8 +886,7 @@ fn a_scenario_folder_is_checked_as_a_set() {
     };
     // One state of the first agent moved 5 km: a teleport, not wrong speed units.
     let teleported = |path: &Path| {
-        let mut v: serde_json::Value =
-            serde_json::from_slice(&std::fs::read(path).expect("read")).expect("JSON");
+        let mut v = unstamped(&std::fs::read(path).expect("read"));
         let states = v["agents"][0]["states"].as_array_mut().expect("states");
         let middle = states.len() / 2;
         let x = states[middle][0]
@@ -798,8 +897,18 @@ fn a_scenario_folder_is_checked_as_a_set() {
     };
     // The first eval scenario with its JSON changed by `edit`.
     let edited = |edit: &dyn Fn(&mut serde_json::Value)| {
+        let mut v = unstamped(&std::fs::read(first("eval")).expect("read"));
+        edit(&mut v);
+        serde_json::to_vec_pretty(&v).expect("JSON")
+    };
+    // The same edit with the digest left in place, as a script that edits one field would.
+    let stamped_edit = |edit: &dyn Fn(&mut serde_json::Value)| {
         let mut v: serde_json::Value =
             serde_json::from_slice(&std::fs::read(first("eval")).expect("read")).expect("JSON");
+        assert!(
+            v["content_sha256"].is_string(),
+            "generated files carry a digest"
+        );
         edit(&mut v);
         serde_json::to_vec_pretty(&v).expect("JSON")
     };
@@ -818,6 +927,19 @@ fn a_scenario_folder_is_checked_as_a_set() {
         (name, part, field)
     };
     let label_cases: Vec<(&str, Vec<u8>, &str)> = vec![
+        (
+            "zz-index-edited.json",
+            stamped_edit(&|v| v["index"] = serde_json::json!(5)),
+            "content_sha256",
+        ),
+        (
+            "zz-length-edited.json",
+            stamped_edit(&|v| {
+                let length = v["agents"][1]["length"].as_f64().expect("length");
+                v["agents"][1]["length"] = serde_json::json!(length + 0.3);
+            }),
+            "content_sha256",
+        ),
         (
             "zz-label-edited.json",
             edited(&|v| {
@@ -864,16 +986,8 @@ fn a_scenario_folder_is_checked_as_a_set() {
             "reference.collided_agents",
         ),
     ];
-    // A scenario edited in place, in a set and as a single file.
-    let original = first("eval");
-    let original_name = original
-        .file_name()
-        .and_then(|n| n.to_str())
-        .expect("UTF-8 name");
-    for (k, (name, bytes, expected)) in label_cases.iter().enumerate() {
-        let root = dir.path().join(format!("edited{k}"));
-        copy_folder(&good, &root);
-        std::fs::write(root.join("eval").join(original_name), bytes).expect("write");
+    // Scoring the long tail of the scenario folder `root` is refused, saying `expected`.
+    let eval_refuses = |root: &Path, expected: &[&str]| {
         assert_refused(
             &[
                 "eval",
@@ -886,8 +1000,20 @@ fn a_scenario_folder_is_checked_as_a_set() {
                 "--scenarios",
                 root.to_str().expect("UTF-8 path"),
             ],
-            &[original_name, expected],
+            expected,
         );
+    };
+    // A scenario edited in place, in a set and as a single file.
+    let original = first("eval");
+    let original_name = original
+        .file_name()
+        .and_then(|n| n.to_str())
+        .expect("UTF-8 name");
+    for (k, (name, bytes, expected)) in label_cases.iter().enumerate() {
+        let root = dir.path().join(format!("edited{k}"));
+        copy_folder(&good, &root);
+        std::fs::write(root.join("eval").join(original_name), bytes).expect("write");
+        eval_refuses(&root, &[original_name, expected]);
         let file = dir.path().join(name);
         std::fs::write(&file, bytes).expect("write");
         let out = dir.path().join(format!("{name}.svg"));
@@ -924,6 +1050,14 @@ fn a_scenario_folder_is_checked_as_a_set() {
             "is `train`",
         ),
         (
+            "zz-renamed-family.json",
+            edited(&|v| {
+                v["family"] = serde_json::json!("my_own_family");
+                v["description"] = serde_json::json!("mine");
+            }),
+            "same scenario as",
+        ),
+        (
             "zz-relabelled.json",
             relabelled(&first("train"), "eval"),
             "of the train set",
@@ -948,22 +1082,57 @@ fn a_scenario_folder_is_checked_as_a_set() {
         let root = dir.path().join(format!("case{k}"));
         copy_folder(&good, &root);
         std::fs::write(root.join("eval").join(name), bytes).expect("write");
-        let root = root.to_str().expect("UTF-8 path");
-        assert_refused(
-            &[
-                "eval",
-                "--checkpoint",
-                "models/il_main",
-                "--set",
-                "longtail",
-                "--scenes",
-                "1",
-                "--scenarios",
-                root,
-            ],
-            &[name, expected],
-        );
+        eval_refuses(&root, &[name, expected]);
     }
+}
+
+/// A run resumed with its scenario folder spelt another way (`./S/` for `S`) is the same run.
+#[test]
+fn a_scenario_folder_spelt_another_way_resumes_the_run() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let status = rtr()
+        .current_dir(dir.path())
+        .args([
+            "scenarios",
+            "generate",
+            "--in-distribution",
+            "8",
+            "--ood",
+            "0",
+        ])
+        .args(["--out", "S"])
+        .stdout(Stdio::null())
+        .status()
+        .expect("rtr runs");
+    assert!(status.success());
+    let config = std::path::absolute("experiments/main/small/rtr.toml").expect("path");
+    let train = |scenarios: &str, resume: bool| {
+        let mut command = rtr();
+        command
+            .current_dir(dir.path())
+            .arg("train")
+            .arg("--config")
+            .arg(&config)
+            .args([
+                "--scenarios",
+                scenarios,
+                "--out",
+                "run",
+                "--stop-after",
+                "1",
+            ]);
+        if resume {
+            command.arg("--resume");
+        }
+        let out = command.output().expect("rtr runs");
+        assert!(
+            out.status.success(),
+            "train --scenarios {scenarios}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    };
+    train("./S/", false);
+    train("S", true);
 }
 
 #[test]

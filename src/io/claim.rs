@@ -41,7 +41,9 @@ impl Inputs {
 pub fn claim_output_file(path: &Path, flag: &str, inputs: &Inputs) -> Result<OutputClaim> {
     check_output(path, OutputKind::File, flag)?;
     refuse_overlap(path, flag, inputs)?;
-    lock(path, flag)
+    let target = resolved(path);
+    refuse_inside_a_claim(&target, path, flag)?;
+    lock(&target, path, flag)
 }
 
 /// An output claimed by [`claim_output_file`] or [`claim_output_folder`]; the claim lasts as
@@ -59,7 +61,52 @@ impl Drop for OutputClaim {
         // (a waiting process notices the path has gone and opens a fresh one).
         let _ = std::fs::remove_file(&self.path);
         let _ = self.lock.unlock();
+        held_here().retain(|p| p != &self.path);
     }
+}
+
+/// The lock files this process holds: its own claims inside a folder it has claimed (a
+/// sweep's points) are not another writer's.
+fn held_here() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
+    static HELD: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+    HELD.lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
+/// Refuses `target` when a folder above it is claimed by another rtr process: that process
+/// replaces its folder whole, and whatever is written inside meanwhile is lost or mixed in.
+fn refuse_inside_a_claim(target: &Path, shown: &Path, flag: &str) -> Result<()> {
+    for folder in target.ancestors().skip(1) {
+        let Some(parent) = folder.parent() else {
+            break;
+        };
+        let lock_path = parent.join(lock_name(folder));
+        if held_here().contains(&lock_path) {
+            continue;
+        }
+        // Only a lock file someone holds counts: a killed writer's is free.
+        let Ok(file) = File::open(&lock_path) else {
+            continue;
+        };
+        match file.try_lock_shared() {
+            Ok(()) => {
+                let _ = file.unlock();
+            }
+            Err(std::fs::TryLockError::WouldBlock) => {
+                let holder = std::fs::read_to_string(&lock_path).unwrap_or_default();
+                return Err(Error::InvalidArgument(format!(
+                    "{flag} {} lies inside {}, which another rtr process is writing ({}); it \
+                     replaces that folder whole when it ends: wait for it or choose another \
+                     {flag}",
+                    shown.display(),
+                    folder.display(),
+                    holder.trim()
+                )));
+            }
+            Err(std::fs::TryLockError::Error(_)) => {}
+        }
+    }
+    Ok(())
 }
 
 /// Checks, before any work, that the folder `path` (given with `flag`) can be written, is
@@ -68,31 +115,41 @@ impl Drop for OutputClaim {
 pub fn claim_output_folder(path: &Path, flag: &str, inputs: &Inputs) -> Result<OutputClaim> {
     check_output(path, OutputKind::Folder, flag)?;
     refuse_overlap(path, flag, inputs)?;
-    let claim = lock(path, flag)?;
+    let target = resolved(path);
+    refuse_inside_a_claim(&target, path, flag)?;
+    let claim = lock(&target, path, flag)?;
     // Under the lock: what a killed writer of this folder left is nobody's.
-    super::output::remove_stale_temporaries(folder_of(path));
-    super::output::remove_stale_temporaries(path);
+    super::output::remove_stale_temporaries(folder_of(&target));
+    super::output::remove_stale_temporaries(&target);
     Ok(claim)
 }
 
-/// `path` made absolute with every existing part's links resolved (an output need not exist
-/// yet), so that two spellings of one place compare equal.
+/// `path` made absolute with every existing part's links resolved and `.` and `..` applied
+/// (an output need not exist yet, and `..` after a part that does not exist is applied to the
+/// words: no link can hide there), so that two spellings of one place compare equal.
 fn resolved(path: &Path) -> PathBuf {
     let absolute = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
-    let mut existing = absolute.as_path();
-    let mut rest = Vec::new();
-    loop {
-        if let Ok(real) = existing.canonicalize() {
-            return rest.iter().rev().fold(real, |p, part| p.join(part));
-        }
-        match (existing.parent(), existing.file_name()) {
-            (Some(parent), Some(name)) => {
-                rest.push(name.to_os_string());
-                existing = parent;
+    let parts: Vec<Component> = absolute.components().collect();
+    for split in (1..=parts.len()).rev() {
+        let Ok(real) = parts[..split].iter().collect::<PathBuf>().canonicalize() else {
+            continue;
+        };
+        let mut out = real;
+        let mut moved_up = false;
+        for part in &parts[split..] {
+            match part {
+                Component::ParentDir => {
+                    out.pop();
+                    moved_up = true;
+                }
+                Component::Normal(name) => out.push(name),
+                _ => {}
             }
-            _ => return absolute,
         }
+        // Back up into existing folders, whose links must be resolved in turn.
+        return if moved_up { resolved(&out) } else { out };
     }
+    absolute
 }
 
 /// Refuses an output that is an input, holds one or lies inside an input folder.
@@ -122,7 +179,7 @@ fn refuse_overlap(output: &Path, flag: &str, inputs: &Inputs) -> Result<()> {
 /// Locks `target` through a lock file beside it (the target may be replaced or not exist
 /// yet). The operating system releases the lock when the process ends, however it ends; the
 /// file itself is removed on release.
-fn lock(target: &Path, flag: &str) -> Result<OutputClaim> {
+fn lock(target: &Path, shown: &Path, flag: &str) -> Result<OutputClaim> {
     let parent = folder_of(target);
     create_folder(parent)?;
     let path = parent.join(lock_name(target));
@@ -136,7 +193,7 @@ fn lock(target: &Path, flag: &str) -> Result<OutputClaim> {
             .map_err(|e| Error::io(&path, e))?;
         match file.try_lock() {
             Ok(()) => {}
-            Err(std::fs::TryLockError::WouldBlock) => return Err(held(target, flag, &path)),
+            Err(std::fs::TryLockError::WouldBlock) => return Err(held(shown, flag, &path)),
             Err(std::fs::TryLockError::Error(e)) => return Err(Error::io(&path, e)),
         }
         // Locked a file its releaser had already removed: take the path's present one.
@@ -155,6 +212,7 @@ fn lock(target: &Path, flag: &str) -> Result<OutputClaim> {
         let _ = file
             .set_len(0)
             .and_then(|()| file.write_all(holder.as_bytes()));
+        held_here().push(path.clone());
         return Ok(OutputClaim { lock: file, path });
     }
 }

@@ -69,9 +69,7 @@ pub fn check_input_file(path: &Path, flag: &str) -> Result<()> {
         Ok(m) if m.is_file() => return Ok(()),
         Ok(m) if m.is_dir() => "is a folder; expected a file".to_string(),
         Ok(m) => format!("is {}; expected a regular file", kind_of(&m)),
-        Err(_) if path.symlink_metadata().is_ok() => {
-            "is a link to nothing (dangling symlink)".to_string()
-        }
+        Err(e) if path.symlink_metadata().is_ok() => broken_link(&e).to_string(),
         Err(_) => "no such file".to_string(),
     };
     Err(Error::InvalidArgument(format!(
@@ -87,7 +85,7 @@ pub fn check_input_folder(path: &Path, flag: &str, expected: &str) -> Result<()>
     let why = match path.metadata() {
         Ok(m) if m.is_dir() => return Ok(()),
         Ok(m) => format!("is {}", kind_of(&m)),
-        Err(_) if path.symlink_metadata().is_ok() => "is a link to nothing".to_string(),
+        Err(e) if path.symlink_metadata().is_ok() => broken_link(&e).to_string(),
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => "does not exist".to_string(),
         Err(e) => format!("cannot be read ({e})"),
     };
@@ -140,10 +138,19 @@ pub fn not_regular(path: &Path) -> Option<String> {
     match path.metadata() {
         Ok(m) if m.is_file() => None,
         Ok(m) => Some(format!("is {}; expected a regular file", kind_of(&m))),
-        Err(_) if path.symlink_metadata().is_ok() => {
-            Some("is a link to nothing (dangling symlink); expected a regular file".into())
+        Err(e) if path.symlink_metadata().is_ok() => {
+            Some(format!("{}; expected a regular file", broken_link(&e)))
         }
         Err(_) => None,
+    }
+}
+
+/// What is wrong with a link whose target cannot be read (`error`, from following it).
+pub(super) fn broken_link(error: &std::io::Error) -> &'static str {
+    if error.raw_os_error() == Some(libc::ELOOP) {
+        "is a link that leads back to itself (a symlink loop)"
+    } else {
+        "is a link to nothing (dangling symlink)"
     }
 }
 

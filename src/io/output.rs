@@ -196,10 +196,11 @@ pub(super) fn check_output(path: &Path, kind: OutputKind, flag: &str) -> Result<
             name.len()
         ));
     }
-    if path.metadata().is_err() && path.symlink_metadata().is_ok() {
-        return fail(
-            "is a link to nothing (dangling symlink); remove it or name another path".into(),
-        );
+    if let (Err(e), Ok(_)) = (path.metadata(), path.symlink_metadata()) {
+        return fail(format!(
+            "{}; remove it or name another path",
+            super::input::broken_link(&e)
+        ));
     }
     match (path.metadata(), kind) {
         (Ok(m), OutputKind::File) if m.is_dir() => {

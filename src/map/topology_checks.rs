@@ -345,9 +345,23 @@ fn connections(od: &OpenDrive) -> impl Iterator<Item = (&Junction, &Connection, 
     })
 }
 
-/// A junction connection's connecting road touches one end of its incoming road.
+/// A junction connection's connecting road is another road, and touches one end of its
+/// incoming road.
 fn connections_meet(od: &OpenDrive) -> Option<Problem> {
     for (junction, c, incoming, connecting) in connections(od) {
+        if incoming.id == connecting.id {
+            return Some(Problem {
+                place: Place::Connection {
+                    junction: junction.id.clone(),
+                    id: c.id.clone(),
+                },
+                message: format!(
+                    "connects road {} to itself; expected a connecting road inside the \
+                     junction that leads from the incoming road to another",
+                    incoming.id
+                ),
+            });
+        }
         let gap = [ContactPoint::Start, ContactPoint::End]
             .map(|end| end_gap(incoming, end, connecting, c.contact_point))
             .into_iter()
@@ -419,6 +433,17 @@ fn linked_lanes_exist(od: &OpenDrive) -> Option<Problem> {
                         (None, None) => None,
                     };
                     for &id in ids {
+                        if id == 0 {
+                            return Some(Problem {
+                                place: place(),
+                                message: format!(
+                                    "lane {} of road {} names {which} lane 0, the centre lane: \
+                                     a reference line without width, no lane to drive into; \
+                                     expected a lane id other than 0",
+                                    lane.id, road.id
+                                ),
+                            });
+                        }
                         let exists =
                             target.is_some_and(|(r, n)| r.lane_sections[n].lane(id).is_some());
                         if !exists {
@@ -477,7 +502,9 @@ fn junction_lanes_exist(od: &OpenDrive) -> Option<Problem> {
             ContactPoint::End => &connecting.lane_sections[connecting.lane_sections.len() - 1],
         };
         for &(from, to) in &c.lane_links {
-            let missing = if incoming_section.lane(from).is_none() {
+            let missing = if from == 0 || to == 0 {
+                Some("lane 0, the centre lane (a reference line without width)".to_string())
+            } else if incoming_section.lane(from).is_none() {
                 Some(format!("lane {from} of incoming road {}", incoming.id))
             } else if connecting_section.lane(to).is_none() {
                 Some(format!("lane {to} of connecting road {}", connecting.id))

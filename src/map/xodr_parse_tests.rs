@@ -303,6 +303,33 @@ fn every_linked_lane_must_exist() {
         "{message}"
     );
     assert_eq!(line, line_of(&text, "<connection"));
+    // The centre lane is a reference line: a link into it leads nowhere.
+    let to_centre = r#"<successor id="0"/>"#;
+    let text = document(
+        &(straight("a", 0.0, 100.0, next, to_centre) + &straight("b", 100.0, 50.0, "", "")),
+    );
+    let (line, message) = parse_err(&text);
+    assert!(message.contains("lane 0, the centre lane"), "{message}");
+    assert_eq!(line, line_of(&text, "<successor id=\"0\""));
+    let text = document(
+        &(straight("a", 0.0, 100.0, into, "")
+            + &straight("c", 100.0, 20.0, "", "")
+            + &junction.replace(r#"to="-5""#, r#"to="0""#)),
+    );
+    assert!(parse_err(&text).1.contains("the centre lane"));
+}
+
+/// A junction connection leads from its incoming road to another road.
+#[test]
+fn a_junction_connection_from_a_road_to_itself_is_refused() {
+    let into = r#"<successor elementType="junction" elementId="j"/>"#;
+    let junction = r#"<junction id="j" name="j"><connection id="0" incomingRoad="a" connectingRoad="a" contactPoint="end">
+ <laneLink from="-1" to="-1"/></connection></junction>
+"#;
+    let text = document(&(straight("a", 0.0, 100.0, into, "") + junction));
+    let (line, message) = parse_err(&text);
+    assert!(message.contains("connects road a to itself"), "{message}");
+    assert_eq!(line, line_of(&text, "<connection"));
 }
 
 #[test]

@@ -103,6 +103,10 @@ pub struct ConcreteScenario {
     pub agents: Vec<ScenarioAgent>,
     pub heroes: Vec<ScenarioHero>,
     pub reference: ReferenceRun,
+    /// sha256 of everything above, as [`Self::write`] wrote it: a file edited since no longer
+    /// matches and is refused. A scenario written by hand leaves it out.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub content_sha256: Option<String>,
 }
 
 /// Longest and shortest plausible vehicle (m), and widths.
@@ -235,8 +239,43 @@ impl ConcreteScenario {
             })
     }
 
+    /// Writes the scenario with its [`Self::content_sha256`].
     pub fn write(&self, path: &Path) -> Result<()> {
-        atomic_write(path, self.to_json()?.as_bytes())
+        let stamped = Self {
+            content_sha256: Some(self.content_digest()?),
+            ..self.clone()
+        };
+        atomic_write(path, stamped.to_json()?.as_bytes())
+    }
+
+    /// sha256 of the scenario without its recorded digest.
+    pub fn content_digest(&self) -> Result<String> {
+        let bare = Self {
+            content_sha256: None,
+            ..self.clone()
+        };
+        let json = serde_json::to_vec(&bare).map_err(|e| {
+            Error::InvalidArgument(format!("cannot encode scenario {}: {e}", self.id()))
+        })?;
+        Ok(crate::data::automatum::sha256_hex(&json))
+    }
+
+    /// Refuses a file whose content is not what was written with its digest.
+    fn check_digest(&self, source: &str) -> Result<()> {
+        let Some(recorded) = &self.content_sha256 else {
+            return Ok(());
+        };
+        if *recorded == self.content_digest()? {
+            return Ok(());
+        }
+        Err(Error::invalid(
+            source,
+            "content_sha256",
+            "is not the digest of the file's content: the file was edited after rtr wrote it, \
+             so its labels (family, parameters, reference) may no longer describe it; generate \
+             it again, or delete the `content_sha256` line to use the edited file as a scenario \
+             of your own (its labels are then checked against its content)",
+        ))
     }
 
     /// Refuses a scenario whose recorded `reference` is not what simulating it with the
@@ -259,6 +298,7 @@ impl ConcreteScenario {
             column: e.column(),
             message: e.to_string(),
         })?;
+        scenario.check_digest(source_name)?;
         scenario.check(source_name)?;
         Ok(scenario)
     }

@@ -204,6 +204,7 @@ fn draw(
             collided_agents: Vec::new(),
             offroad_agents: Vec::new(),
         },
+        content_sha256: None,
     })
 }
 

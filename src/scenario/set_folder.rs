@@ -76,10 +76,11 @@ fn scenario_files(dir: &Path) -> Result<Vec<PathBuf>> {
 }
 
 /// What makes two scenarios the same drive, either of two keys:
-/// - the content but the labels a copy could change (set, index, seed, description);
-/// - the draw: the family and every drawn value, when one of them is continuous. Two
-///   independent draws never repeat a continuous value to the last digit, so a copy whose
-///   states were nudged (a millimetre, a hundred metres) is still the draw it was.
+/// - the content but the labels a copy could change (family, description, set, index, seed);
+/// - the draw: every drawn value by name, when one of them is continuous. Two independent
+///   draws never repeat a continuous value to the last digit, so a copy whose states were
+///   nudged (a millimetre, a hundred metres) or whose family was renamed is still the draw it
+///   was.
 fn identities(scenario: &ConcreteScenario) -> Result<Vec<String>> {
     let mut keys = vec![fingerprint(scenario)?];
     if scenario.parameters.values().any(|v| v.fract() != 0.0) {
@@ -88,7 +89,7 @@ fn identities(scenario: &ConcreteScenario) -> Result<Vec<String>> {
             .iter()
             .map(|(name, value)| format!("{name}={:x}", value.to_bits()))
             .collect();
-        keys.push(format!("draw {} {}", scenario.family, draw.join(" ")));
+        keys.push(format!("draw {}", draw.join(" ")));
     }
     Ok(keys)
 }
@@ -96,10 +97,12 @@ fn identities(scenario: &ConcreteScenario) -> Result<Vec<String>> {
 /// The content key of [`identities`].
 fn fingerprint(scenario: &ConcreteScenario) -> Result<String> {
     let bare = ConcreteScenario {
+        family: String::new(),
+        description: String::new(),
         set: ScenarioSet::Train,
         index: 0,
         seed: 0,
-        description: String::new(),
+        content_sha256: None,
         ..scenario.clone()
     };
     let json = serde_json::to_vec(&bare)

@@ -241,13 +241,11 @@ fn curated_indices(nominal: &[Scene], path: &Path) -> Result<Vec<usize>> {
         .enumerate()
         .map(|(k, s)| (s.id.as_str(), k))
         .collect();
-    if !path.is_file() {
-        return Err(Error::InvalidArgument(format!(
-            "run file field `data.curated`: {}: no such file; expected a scene list written by \
-             `rtr curate`",
-            path.display()
-        )));
-    }
+    crate::io::check_input_file(path, "run file field `data.curated`").map_err(|e| {
+        Error::InvalidArgument(format!(
+            "{e}; expected a scene list written by `rtr curate`"
+        ))
+    })?;
     read_scene_list(path)?
         .iter()
         .map(|id| {

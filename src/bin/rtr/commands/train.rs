@@ -44,6 +44,7 @@ pub fn run(args: TrainArgs) -> Result<()> {
     rtr::io::check_input_file(&args.config, "--config")?;
     let mut config = rtr::train::TrainConfig::from_toml_file(&args.config)?;
     if let Some(path) = &args.dynamics {
+        rtr::io::check_input_file(path, "--dynamics")?;
         // Absolute in the run's config.toml, so the run evaluates from any folder.
         config.dynamics = Some(path.canonicalize().unwrap_or_else(|_| path.clone()));
     }
@@ -70,7 +71,16 @@ pub fn run(args: TrainArgs) -> Result<()> {
                 super::eval::SCENARIO_FOLDER
             )));
         }
-        config.data.longtail_dir = Some(dir.clone());
+        // Spelt without `.` parts, so `./scenarios/` resumes a run started with `scenarios`.
+        let spelt: PathBuf = dir
+            .components()
+            .filter(|c| !matches!(c, std::path::Component::CurDir))
+            .collect();
+        config.data.longtail_dir = Some(if spelt.as_os_str().is_empty() {
+            PathBuf::from(".")
+        } else {
+            spelt
+        });
         config.validate(&format!("{} with --scenarios", args.config.display()))?;
     }
     if let Some(keep) = args.keep_checkpoints {
