@@ -61,8 +61,6 @@ pub enum Feature {
     /// limit is chosen from the data ([`Feature::limit_grids`]); with coefficient -1 the
     /// acceleration is capped at p / v.
     PowerLimit { specific_power_w_kg: f64 },
-    /// 1 / v: a force that falls with speed as a constant tractive power's does.
-    InvV,
     /// max(u - a, 0): the throttle above a fixed cap; with coefficient -1 the acceleration
     /// saturates at `a` (m/s^2), as a powertrain's or a controller's limit does.
     AccelLimit { accel_m_s2: f64 },
@@ -78,9 +76,6 @@ pub enum Feature {
 /// Speeds below this (m/s) count as this in `p / v`: at a standstill the limit is far above any
 /// command anyway.
 const POWER_LIMIT_MIN_SPEED_M_S: f64 = 0.1;
-/// Speeds below this (m/s) count as this in `1 / v`, which would otherwise grow without bound
-/// at a standstill, where discovery takes no samples.
-const INV_V_MIN_SPEED_M_S: f64 = 1.0;
 
 /// What a limit term's coefficient means: -1 cuts everything beyond the limit.
 fn limit_meaning(coefficient: f64, beyond: &str) -> String {
@@ -100,7 +95,6 @@ impl Feature {
                 Feature::One,
                 Feature::V,
                 Feature::V2,
-                Feature::InvV,
                 Feature::U,
                 Feature::UBrake,
                 Feature::VU,
@@ -188,10 +182,7 @@ impl Feature {
     /// Whether the feature involves a command (so it cannot be identified when the commands
     /// were inferred from the motion itself).
     pub fn involves_commands(self) -> bool {
-        !matches!(
-            self,
-            Feature::One | Feature::V | Feature::V2 | Feature::InvV
-        )
+        !matches!(self, Feature::One | Feature::V | Feature::V2)
     }
 
     /// The feature's kind, as dynamics files spell it (a power limit without its value).
@@ -207,7 +198,6 @@ impl Feature {
             Feature::KappaV => "kappa_v",
             Feature::KappaV2 => "kappa_v2",
             Feature::PowerLimit { .. } => "power_limit",
-            Feature::InvV => "inv_v",
             Feature::AccelLimit { .. } => "accel_limit",
             Feature::BrakeLimit { .. } => "brake_limit",
             Feature::SteerLimit { .. } => "steer_limit",
@@ -228,7 +218,6 @@ impl Feature {
             Feature::PowerLimit {
                 specific_power_w_kg,
             } => format!("max(u - {specific_power_w_kg:.1} / v, 0)"),
-            Feature::InvV => "1 / v".into(),
             Feature::AccelLimit { accel_m_s2 } => format!("max(u - {accel_m_s2:.2}, 0)"),
             Feature::BrakeLimit { decel_m_s2 } => format!("min(u + {decel_m_s2:.2}, 0)"),
             Feature::SteerLimit { angle_rad } => {
@@ -297,9 +286,6 @@ impl Feature {
                     )
                 }
             }
-            (Equation::Speed, Feature::InvV) => {
-                "an acceleration inversely proportional to speed (a constant tractive power)".into()
-            }
             (Equation::Speed, Feature::AccelLimit { accel_m_s2 }) => limit_meaning(
                 coefficient,
                 &format!("throttle above {accel_m_s2:.2} m/s^2"),
@@ -345,7 +331,6 @@ impl Feature {
             Feature::PowerLimit {
                 specific_power_w_kg,
             } => (u - specific_power_w_kg / v.max(POWER_LIMIT_MIN_SPEED_M_S)).max(0.0),
-            Feature::InvV => 1.0 / v.max(INV_V_MIN_SPEED_M_S),
             Feature::AccelLimit { accel_m_s2 } => (u - accel_m_s2).max(0.0),
             Feature::BrakeLimit { decel_m_s2 } => (u + decel_m_s2).min(0.0),
             Feature::SteerLimit { angle_rad } => v * (tan - phi.clamp(-angle_rad, angle_rad).tan()),
@@ -376,7 +361,6 @@ impl Feature {
                     .mul_scalar(specific_power_w_kg);
                 (u - limit).clamp_min(0.0)
             }
-            Feature::InvV => v.clamp_min(INV_V_MIN_SPEED_M_S).recip(),
             Feature::AccelLimit { accel_m_s2 } => u.sub_scalar(accel_m_s2).clamp_min(0.0),
             Feature::BrakeLimit { decel_m_s2 } => u.add_scalar(decel_m_s2).clamp_max(0.0),
             Feature::SteerLimit { angle_rad } => {
