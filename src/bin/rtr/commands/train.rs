@@ -40,6 +40,19 @@ pub struct TrainArgs {
     data: DataArgs,
 }
 
+/// `dir` without its `.` parts, so `./scenarios/` resumes a run started with `scenarios`.
+fn without_dot_parts(dir: &Path) -> PathBuf {
+    let spelt: PathBuf = dir
+        .components()
+        .filter(|c| !matches!(c, std::path::Component::CurDir))
+        .collect();
+    if spelt.as_os_str().is_empty() {
+        PathBuf::from(".")
+    } else {
+        spelt
+    }
+}
+
 pub fn run(args: TrainArgs) -> Result<()> {
     rtr::io::check_input_file(&args.config, "--config")?;
     let mut config = rtr::train::TrainConfig::from_toml_file(&args.config)?;
@@ -71,16 +84,7 @@ pub fn run(args: TrainArgs) -> Result<()> {
                 super::eval::SCENARIO_FOLDER
             )));
         }
-        // Spelt without `.` parts, so `./scenarios/` resumes a run started with `scenarios`.
-        let spelt: PathBuf = dir
-            .components()
-            .filter(|c| !matches!(c, std::path::Component::CurDir))
-            .collect();
-        config.data.longtail_dir = Some(if spelt.as_os_str().is_empty() {
-            PathBuf::from(".")
-        } else {
-            spelt
-        });
+        config.data.longtail_dir = Some(without_dot_parts(dir));
         config.validate(&format!("{} with --scenarios", args.config.display()))?;
     }
     if let Some(keep) = args.keep_checkpoints {
