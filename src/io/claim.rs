@@ -127,7 +127,7 @@ pub fn claim_output_folder(path: &Path, flag: &str, inputs: &Inputs) -> Result<O
 /// `path` made absolute with every existing part's links resolved and `.` and `..` applied
 /// (an output need not exist yet, and `..` after a part that does not exist is applied to the
 /// words: no link can hide there), so that two spellings of one place compare equal.
-fn resolved(path: &Path) -> PathBuf {
+pub fn resolved(path: &Path) -> PathBuf {
     let absolute = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
     let parts: Vec<Component> = absolute.components().collect();
     for split in (1..=parts.len()).rev() {

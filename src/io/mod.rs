@@ -6,12 +6,13 @@
 
 mod claim;
 pub mod console;
+mod folder_swap;
 mod input;
 mod output;
 mod process_files;
 mod staged;
 
-pub use claim::{Inputs, OutputClaim, claim_output_file, claim_output_folder};
+pub use claim::{Inputs, OutputClaim, claim_output_file, claim_output_folder, resolved};
 pub use input::{
     Capped, Format, capped, check_input_file, check_input_folder, check_input_path, list_folder,
     not_regular, open_regular, read_bytes, read_error, read_text, utf8_text,
@@ -35,7 +36,9 @@ pub fn parse_toml<T: serde::de::DeserializeOwned>(text: &str, source_name: &str)
             .unwrap_or((0, 0));
         let (mut line, mut column) = (line, column);
         let mut message = plain_words(e.message());
-        if let Some((header_line, hint)) = table_kind_hint::<T>(text, line) {
+        // An empty span is the document itself (a missing top-level key): no table to blame.
+        let in_a_table = e.span().is_some_and(|span| !span.is_empty());
+        if let Some((header_line, hint)) = table_kind_hint::<T>(text, line).filter(|_| in_a_table) {
             // serde's own words describe the misread, not the mistake, which is the header.
             (line, column, message) = (header_line, 1, hint);
         } else if message.starts_with("duplicate key")
@@ -184,6 +187,32 @@ mod tests {
     #[derive(Debug, serde::Deserialize)]
     #[serde(deny_unknown_fields)]
     #[allow(dead_code)]
+    struct WithMethod {
+        method: String,
+        #[serde(default)]
+        run: Option<Backend>,
+    }
+
+    /// Like the run file's `[run]`: a struct whose first field is an enum, which serde also
+    /// reads from a list (by position), so `[[run]]` fails further down than `[run]`.
+    #[derive(Debug, serde::Deserialize)]
+    #[serde(deny_unknown_fields)]
+    #[allow(dead_code)]
+    struct Backend {
+        backend: Kind,
+    }
+
+    #[derive(Debug, serde::Deserialize)]
+    #[serde(rename_all = "lowercase")]
+    #[allow(dead_code)]
+    enum Kind {
+        Ndarray,
+        Flex,
+    }
+
+    #[derive(Debug, serde::Deserialize)]
+    #[serde(deny_unknown_fields)]
+    #[allow(dead_code)]
     struct Dynamics {
         terms: Vec<Clip>,
     }
@@ -206,6 +235,11 @@ mod tests {
             err.to_string().contains("line 2, column 1"),
             "the header's line: {err}"
         );
+        // A missing key of the file's top level is that, whatever header comes first.
+        let text = "[run]\nbackend = \"ndarray\"\n";
+        let err = parse_toml::<WithMethod>(text, "run.toml").expect_err("no method");
+        assert!(err.to_string().contains("missing field `method`"), "{err}");
+        assert!(!err.to_string().contains("write `["), "{err}");
         // A real list with a wrong value inside gets serde's message alone.
         let err = parse_toml::<File>("[[clips]]\npath = \"a\"\nweight = \"x\"\n", "run.toml")
             .expect_err("a string weight");

@@ -83,6 +83,7 @@ pub(super) fn folder_of(path: &Path) -> &Path {
 pub fn atomic_write_with(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
     let target = link_target(path);
     let path = target.as_deref().unwrap_or(path);
+    refuse_folder(path)?;
     let folder = folder_of(path);
     create_folder(folder)?;
     let extension = path.extension().and_then(|e| e.to_str());
@@ -94,6 +95,19 @@ pub fn atomic_write_with(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -
         let _ = std::fs::remove_file(&tmp);
     }
     result
+}
+
+/// A file is to be written at `path`, where a folder is: said in words (the rename would
+/// fail with the system's "Is a directory", which names no remedy).
+fn refuse_folder(path: &Path) -> Result<()> {
+    if path.is_dir() {
+        return Err(Error::InvalidArgument(format!(
+            "{} is a folder where rtr writes a file; move the folder away or choose another \
+             output",
+            path.display()
+        )));
+    }
+    Ok(())
 }
 
 /// Where a symbolic link `path` leads, when it is one: the file written is its target, and
@@ -133,6 +147,7 @@ pub fn atomic_write(path: &Path, bytes: &[u8]) -> Result<()> {
 /// files inside a folder that is itself staged and renamed into place.
 pub fn write_new(path: &Path, bytes: &[u8]) -> Result<()> {
     use std::io::Write;
+    refuse_folder(path)?;
     let mut file = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
     file.write_all(bytes)
         .and_then(|()| file.sync_all())
@@ -169,6 +184,7 @@ pub fn rename(from: &Path, to: &Path) -> Result<()> {
 
 /// A writer's output for [`std::fs::File`]-based encoders (GIF, PNG streams): creates `path`.
 pub fn create_file(path: &Path) -> Result<std::fs::File> {
+    refuse_folder(path)?;
     std::fs::File::create(path).map_err(|e| Error::io(path, e))
 }
 
@@ -232,18 +248,27 @@ pub(super) fn check_output(path: &Path, kind: OutputKind, flag: &str) -> Result<
                 a
             }
         })
-        .find(|a| a.exists());
+        // A dangling link on the way counts as there: it is what stops the way.
+        .find(|a| a.symlink_metadata().is_ok());
     let Some(folder) = existing else {
         return fail("no part of the path exists".into());
     };
-    if let Ok(m) = folder.metadata()
-        && !m.is_dir()
-    {
-        return fail(format!(
-            "{} is {}, so nothing can be written under it",
-            folder.display(),
-            super::input::kind_of(&m)
-        ));
+    match folder.metadata() {
+        Ok(m) if !m.is_dir() => {
+            return fail(format!(
+                "{} is {}, so nothing can be written under it",
+                folder.display(),
+                super::input::kind_of(&m)
+            ));
+        }
+        Err(e) => {
+            return fail(format!(
+                "{} {}, so nothing can be written under it",
+                folder.display(),
+                super::input::broken_link(&e)
+            ));
+        }
+        Ok(_) => {}
     }
     let probe = temp_name(folder, "probe", None);
     match std::fs::OpenOptions::new()

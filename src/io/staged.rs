@@ -77,16 +77,81 @@ impl StagedFolder {
             check_mergeable(&self.staging, &self.target)?;
             let earlier = own_files(&self.target)?;
             refuse_foreign(&self.target, &staged, &earlier)?;
-            merge(&self.staging, &self.target)?;
-            super::remove_folder(&self.staging)?;
-            record_own_files(&self.target, Some(self.kind), &staged)?;
-            remove_stale(&self.target, &earlier, &staged)?;
+            let dropped: Vec<PathBuf> = earlier
+                .iter()
+                .filter(|f| !staged.contains(f))
+                .cloned()
+                .collect();
+            if !self.swap_in(&staged, &earlier, &dropped)? {
+                merge(&self.staging, &self.target)?;
+                super::remove_folder(&self.staging)?;
+                record_own_files(&self.target, Some(self.kind), &staged)?;
+                remove_stale(&self.target, &dropped)?;
+            }
         } else {
             record_own_files(&self.staging, Some(self.kind), &staged)?;
             super::rename(&self.staging, &self.target)?;
         }
         self.committed = true;
         Ok(())
+    }
+
+    /// Replaces the existing target folder by the staged one in one atomic exchange
+    /// ([`super::folder_swap`]), keeping every file of the target but the `staged` ones it
+    /// replaces and the `dropped` ones of rtr's `earlier` files. Returns false, with the
+    /// target and the staged set untouched, where the file system cannot link or exchange;
+    /// the caller then merges file by file.
+    fn swap_in(
+        &mut self,
+        staged: &[PathBuf],
+        earlier: &[PathBuf],
+        dropped: &[PathBuf],
+    ) -> Result<bool> {
+        use super::folder_swap::{exchange, link_survivors, return_late_files, unlink_survivors};
+        if self.target.is_symlink() {
+            // Exchanging would replace the link, not the folder it names.
+            return Ok(false);
+        }
+        let prepared = link_survivors(&self.target, &self.staging, staged, dropped, OWN_FILES)
+            .and_then(|()| {
+                record_own_files(&self.staging, Some(self.kind), staged)
+                    .map_err(|e| std::io::Error::other(e.to_string()))
+            })
+            .and_then(|()| exchange(&self.staging, &self.target));
+        if let Err(e) = prepared {
+            unlink_survivors(&self.staging, staged).map_err(|e| Error::io(&self.staging, e))?;
+            return match e.raw_os_error() {
+                // No hard links or no exchange on this file system: merge instead.
+                Some(libc::EXDEV | libc::EPERM | libc::EMLINK | libc::EINVAL | libc::ENOSYS)
+                | Some(libc::ENOTSUP) => Ok(false),
+                _ if e.kind() == std::io::ErrorKind::Unsupported => Ok(false),
+                _ => Err(Error::io(&self.target, e)),
+            };
+        }
+        // Published: from here on the staging path holds the earlier folder.
+        self.committed = true;
+        let stranded = return_late_files(&self.staging, &self.target, earlier, OWN_FILES)
+            .map_err(|e| Error::io(&self.staging, e))?;
+        if stranded.is_empty() {
+            super::remove_folder(&self.staging)?;
+            return Ok(true);
+        }
+        let kept = self.target.with_file_name(format!(
+            "{}.earlier-{}",
+            self.target
+                .file_name()
+                .unwrap_or_default()
+                .to_string_lossy(),
+            std::process::id()
+        ));
+        super::rename(&self.staging, &kept)?;
+        Err(Error::InvalidArgument(format!(
+            "{} was replaced by the new results, but {} written there meanwhile clashed with \
+             them; the earlier folder, with those files, is kept as {}",
+            self.target.display(),
+            stranded.len(),
+            kept.display()
+        )))
     }
 }
 
@@ -231,10 +296,9 @@ fn refuse_foreign(target: &Path, staged: &[PathBuf], earlier: &[PathBuf]) -> Res
     )))
 }
 
-/// Removes the files of rtr's `earlier` set that the `current` one lacks, and the folders
-/// that leaves empty.
-fn remove_stale(target: &Path, earlier: &[PathBuf], current: &[PathBuf]) -> Result<()> {
-    for file in earlier.iter().filter(|f| !current.contains(f)) {
+/// Removes the `dropped` files of rtr's earlier set, and the folders that leaves empty.
+fn remove_stale(target: &Path, dropped: &[PathBuf]) -> Result<()> {
+    for file in dropped {
         let path = target.join(file);
         super::remove_file(&path)?;
         for dir in path.ancestors().skip(1) {
@@ -300,7 +364,9 @@ fn check_mergeable(staged: &Path, target: &Path) -> Result<()> {
     Ok(())
 }
 
-/// Moves the entries of `staged` into `target`, folder by folder (each file by one rename).
+/// Moves the entries of `staged` into `target`, folder by folder (each file by one rename):
+/// the fallback where the folders cannot be exchanged in one step, so a run killed midway
+/// leaves a mix there.
 fn merge(staged: &Path, target: &Path) -> Result<()> {
     for entry in std::fs::read_dir(staged).map_err(|e| Error::io(staged, e))? {
         let entry = entry.map_err(|e| Error::io(staged, e))?;
