@@ -9,6 +9,7 @@ pub mod commonroad;
 pub mod logged_infractions;
 pub mod motion;
 pub mod recordings;
+mod repeated_tracks;
 pub mod scene_list;
 pub mod summary;
 pub mod track;

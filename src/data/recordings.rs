@@ -175,124 +175,6 @@ impl RecordedTrack {
     }
 }
 
-/// How close (per channel) two tracks' samples must all be for the tracks to count as one
-/// recorded twice: speeds, headings and commands within a millimetre (per second) and a tenth
-/// of a milliradian, positions one constant offset apart to within a millimetre (a copy moved
-/// as a whole is still a copy). Two runs that are really two differ at least by their noise.
-const SAME_OFFSET_M: f64 = 1e-3;
-const SAME_ANGLE_RAD: f64 = 1e-4;
-const SAME_SPEED: f64 = 1e-3;
-/// A track that travels less than this (m) stands: it must repeat the other's positions
-/// themselves, not up to an offset.
-const STANDING_M: f64 = 1.0;
-/// A copy with noise added to its samples: RMS differences (after one constant offset of the
-/// positions) within these of a track that manoeuvres (brakes or speeds up by
-/// [`MANOEUVRE_SPEED`], or turns by [`MANOEUVRE_HEADING_RAD`]) over at least
-/// [`NOISY_COPY_SAMPLES`] samples. Two vehicles do not repeat each other's manoeuvres to a few
-/// centimetres over a whole track; two cruising at one speed on a straight road could, so a
-/// track without a manoeuvre is only compared to the millimetre.
-const NOISY_COPY_POSITION_M: f64 = 0.25;
-const NOISY_COPY_SPEED: f64 = 0.25;
-const NOISY_COPY_HEADING_RAD: f64 = 0.02;
-const MANOEUVRE_SPEED: f64 = 2.0;
-const MANOEUVRE_HEADING_RAD: f64 = 0.1;
-const NOISY_COPY_SAMPLES: usize = 20;
-
-/// Refuses a track recorded twice under two ids (the same motion and commands, positions up
-/// to a constant offset, whatever the times): split into fitting and held-out tracks, one copy
-/// would be scored against the other, and the held-out error would be a training error.
-fn refuse_repeated_tracks(source: &str, tracks: &[RecordedTrack]) -> Result<()> {
-    // Candidates share a length and nearly a first speed: sorted so, each track is compared
-    // with the few that follow it within the tolerance.
-    let mut order: Vec<usize> = (0..tracks.len())
-        .filter(|&i| !tracks[i].x.is_empty())
-        .collect();
-    order.sort_by(|&a, &b| {
-        (tracks[a].len(), tracks[a].speed[0])
-            .partial_cmp(&(tracks[b].len(), tracks[b].speed[0]))
-            .unwrap_or(std::cmp::Ordering::Equal)
-    });
-    for (k, &a) in order.iter().enumerate() {
-        for &b in &order[k + 1..] {
-            let (ta, tb) = (&tracks[a], &tracks[b]);
-            if tb.len() != ta.len() || tb.speed[0] - ta.speed[0] > NOISY_COPY_SPEED * 4.0 {
-                break;
-            }
-            if same_motion(ta, tb) || noisy_copy(ta, tb) {
-                let (first, second) = if a < b { (ta, tb) } else { (tb, ta) };
-                return Err(Error::invalid(
-                    source,
-                    format!("track_id {}", second.id),
-                    format!(
-                        "is the same track as track_id {} (the same samples within a \
-                         millimetre, or moved as a whole, or the same manoeuvres within \
-                         {NOISY_COPY_POSITION_M} m RMS: a copy with noise added, under another \
-                         id); a repeated track would be held out against its own copy",
-                        first.id
-                    ),
-                ));
-            }
-        }
-    }
-    Ok(())
-}
-
-/// Whether every sample of `a` and `b` agrees within the tolerances above.
-fn same_motion(a: &RecordedTrack, b: &RecordedTrack) -> bool {
-    let close = |x: &[f64], y: &[f64], tolerance: f64| {
-        x.iter().zip(y).all(|(p, q)| (p - q).abs() <= tolerance)
-    };
-    let same_channels = close(&a.heading, &b.heading, SAME_ANGLE_RAD)
-        && close(&a.speed, &b.speed, SAME_SPEED)
-        && close(&a.accel_cmd, &b.accel_cmd, SAME_SPEED)
-        && close(&a.steer_cmd, &b.steer_cmd, SAME_ANGLE_RAD);
-    if !same_channels {
-        return false;
-    }
-    let offset = (a.x[0] - b.x[0], a.y[0] - b.y[0]);
-    let constant = (0..a.len()).all(|k| {
-        (a.x[k] - b.x[k] - offset.0).abs() <= SAME_OFFSET_M
-            && (a.y[k] - b.y[k] - offset.1).abs() <= SAME_OFFSET_M
-    });
-    let travels = (0..a.len()).any(|k| (a.x[k] - a.x[0]).hypot(a.y[k] - a.y[0]) > STANDING_M);
-    constant && (travels || offset.0.hypot(offset.1) <= SAME_OFFSET_M)
-}
-
-/// Whether `b` is `a` with noise added ([`NOISY_COPY_POSITION_M`] and the constants beside
-/// it): the same manoeuvres, sample for sample, within a few centimetres RMS. The first
-/// sample's speed sorts the candidates, so a copy's may differ by a few noise widths.
-fn noisy_copy(a: &RecordedTrack, b: &RecordedTrack) -> bool {
-    let n = a.len();
-    if n < NOISY_COPY_SAMPLES || b.len() != n {
-        return false;
-    }
-    let rms =
-        |d: &dyn Fn(usize) -> f64| ((0..n).map(|k| d(k).powi(2)).sum::<f64>() / n as f64).sqrt();
-    let mean = |d: &dyn Fn(usize) -> f64| (0..n).map(d).sum::<f64>() / n as f64;
-    let offset = (mean(&|k| a.x[k] - b.x[k]), mean(&|k| a.y[k] - b.y[k]));
-    let position = rms(&|k| (a.x[k] - b.x[k] - offset.0).hypot(a.y[k] - b.y[k] - offset.1));
-    let speed = rms(&|k| a.speed[k] - b.speed[k]);
-    let heading = rms(&|k| crate::geometry::wrap_angle(a.heading[k] - b.heading[k]));
-    if position > NOISY_COPY_POSITION_M
-        || speed > NOISY_COPY_SPEED
-        || heading > NOISY_COPY_HEADING_RAD
-    {
-        return false;
-    }
-    let range = |v: &[f64]| {
-        let (lo, hi) = v
-            .iter()
-            .fold((f64::MAX, f64::MIN), |(lo, hi), &x| (lo.min(x), hi.max(x)));
-        hi - lo
-    };
-    let travels = (0..n).any(|k| (a.x[k] - a.x[0]).hypot(a.y[k] - a.y[0]) > STANDING_M);
-    if !travels {
-        // Two standing vehicles are one only where they stand in one place.
-        return offset.0.hypot(offset.1) <= NOISY_COPY_POSITION_M;
-    }
-    range(&a.speed) >= MANOEUVRE_SPEED || range(&a.heading) >= MANOEUVRE_HEADING_RAD
-}
-
 /// All tracks of one recordings file.
 #[derive(Debug, Clone)]
 pub struct Recordings {
@@ -368,7 +250,7 @@ impl Recordings {
             .into_iter()
             .map(|b| b.finish(source))
             .collect::<Result<Vec<_>>>()?;
-        refuse_repeated_tracks(source, &tracks)?;
+        super::repeated_tracks::refuse_repeated_tracks(source, &tracks)?;
         Ok(Recordings {
             source: source.to_string(),
             tracks,

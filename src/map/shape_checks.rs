@@ -174,10 +174,11 @@ fn cross(p: [f64; 2], q: [f64; 2], r: [f64; 2], s: [f64; 2]) -> bool {
     d1 * d2 < 0.0 && d3 * d4 < 0.0
 }
 
-/// No road outside a junction lies on another one, the same way, with lanes on the same side
-/// (a road pasted twice under two ids): its lanes would be two copies of one carriageway, and
-/// agents on either would drive through each other. Roads inside junctions share their first
-/// metres by design and are left out.
+/// No road outside a junction lies on another one with lanes on the same side of the line
+/// (a road pasted twice under two ids, either way round): its lanes would be two copies of one
+/// carriageway, and agents on either would drive through each other. Two roads on one line the
+/// opposite way, each with lanes on its own right, are one two-way road and stay. Roads inside
+/// junctions share their first metres by design and are left out.
 fn roads_are_not_repeated(od: &OpenDrive) -> Option<Problem> {
     use std::collections::HashMap;
     const CELL: f64 = 4.0 * CHECK_SPACING;
@@ -207,17 +208,22 @@ fn roads_are_not_repeated(od: &OpenDrive) -> Option<Problem> {
         candidates.sort_unstable();
         candidates.dedup();
         for a in candidates {
-            let lies_on = points
-                .iter()
-                .all(|&(x, y, h)| near_sample(&samples[a], x, y, h));
-            if lies_on && share_a_side(open[a], open[b]) {
+            let Some(reversed) = [false, true].into_iter().find(|&reversed| {
+                points
+                    .iter()
+                    .all(|&(x, y, h)| near_sample(&samples[a], x, y, h, reversed))
+            }) else {
+                continue;
+            };
+            if share_a_side(open[a], open[b], reversed) {
                 let (first, second) = if a < b { (a, b) } else { (b, a) };
+                let way = if reversed { "the opposite" } else { "the same" };
                 return Some(Problem {
                     place: Place::Road(open[second].id.clone()),
                     message: format!(
                         "road {} lies on road {} (its reference line within {LINK_TOLERANCE} m \
-                         of the other's, the same way, with lanes on the same side): one \
-                         carriageway given twice; expected each road once",
+                         of the other's, {way} way, with lanes on the same side of the line): \
+                         one carriageway given twice; expected each road once",
                         open[second].id, open[first].id
                     ),
                 });
@@ -238,22 +244,27 @@ fn reference_samples(road: &Road) -> Vec<(f64, f64, f64)> {
         .collect()
 }
 
-/// Whether (x, y) lies within [`LINK_TOLERANCE`] of the polyline `line`, heading its way.
-fn near_sample(line: &[(f64, f64, f64)], x: f64, y: f64, heading: f64) -> bool {
+/// Whether (x, y) lies within [`LINK_TOLERANCE`] of the polyline `line`, heading its way (or
+/// against it, when `reversed`).
+fn near_sample(line: &[(f64, f64, f64)], x: f64, y: f64, heading: f64, reversed: bool) -> bool {
+    let turn = if reversed { std::f64::consts::PI } else { 0.0 };
     line.windows(2).any(|pair| {
         let ((ax, ay, ah), (bx, by, _)) = (pair[0], pair[1]);
-        let along = crate::geometry::wrap_angle(heading - ah).abs() < LINK_MAX_TURN_RAD;
+        let along = crate::geometry::wrap_angle(heading + turn - ah).abs() < LINK_MAX_TURN_RAD;
         along && to_segment([x, y], [[ax, ay], [bx, by]]) <= LINK_TOLERANCE
     })
 }
 
-/// Whether both roads have lanes to the right of their reference lines, or both to the left.
-fn share_a_side(a: &Road, b: &Road) -> bool {
+/// Whether both roads have lanes on one side of their common line: both to the right of
+/// their reference lines, or both to the left; for a road lying on the other `reversed`, one's
+/// right is the other's left.
+fn share_a_side(a: &Road, b: &Road, reversed: bool) -> bool {
     let sides = |r: &Road| {
         let right = r.lane_sections.iter().any(|s| !s.right.is_empty());
         let left = r.lane_sections.iter().any(|s| !s.left.is_empty());
         (right, left)
     };
     let ((ar, al), (br, bl)) = (sides(a), sides(b));
+    let (br, bl) = if reversed { (bl, br) } else { (br, bl) };
     (ar && br) || (al && bl)
 }

@@ -534,6 +534,18 @@ fn a_road_given_twice_under_two_ids_is_refused() {
         "t",
     )
     .expect("two directions");
+    // But that line with its lanes on its left lies on road a's lanes: the same carriageway.
+    let overlay = other_way
+        .replace("<right>", "<left>")
+        .replace("</right>", "</left>")
+        .replace(r#"lane id="-"#, r#"lane id=""#);
+    let text = document(&(straight("a", 0.0, 100.0, "", "") + &overlay));
+    let (line, message) = parse_err(&text);
+    assert!(
+        message.contains("road b lies on road a") && message.contains("the opposite way"),
+        "{message}"
+    );
+    assert_eq!(line, line_of(&text, "<road id=\"b\""));
 }
 
 /// A spiral winding inwards never crosses its own reference line, but with loops nested closer
