@@ -212,6 +212,40 @@ fn an_output_that_is_not_a_file_is_refused_and_a_link_is_written_through() {
         let meta = std::fs::metadata("/dev/null").expect("/dev/null");
         assert!(!meta.is_file(), "/dev/null was replaced by a file");
     }
+    // A link to nothing on the way is named as that, whichever command writes there.
+    let dangling = dir.path().join("gone");
+    std::os::unix::fs::symlink(dir.path().join("nowhere"), &dangling).expect("symlink");
+    let below = |name: &str| dangling.join(name).to_str().expect("UTF-8").to_string();
+    for args in [
+        vec!["scenarios", "generate", "--out", &below("sets")],
+        vec![
+            "map",
+            "export",
+            "--procedural",
+            "straight",
+            "--out",
+            &below("a.xodr"),
+        ],
+        vec![
+            "model",
+            "average",
+            "--checkpoint",
+            "models/il",
+            "--checkpoint",
+            "models/rtr",
+            "--out",
+            &below("mean"),
+        ],
+    ] {
+        assert_refused(
+            &args,
+            &[
+                "--out",
+                "link to nothing",
+                "nothing can be written under it",
+            ],
+        );
+    }
     let target = dir.path().join("real.xodr");
     std::fs::write(&target, "old").expect("write");
     let link = dir.path().join("link.xodr");
@@ -683,6 +717,61 @@ fn a_folder_of_the_users_is_never_written_over() {
     assert_eq!(
         std::fs::read_to_string(out.join("table.md")).expect("kept"),
         "my notes"
+    );
+    // A folder where a run writes a file is not a run's either.
+    let odd = dir.path().join("odd");
+    std::fs::create_dir_all(odd.join("config.toml")).expect("mkdir");
+    let odd_str = odd.to_str().expect("UTF-8 path");
+    assert_refused(
+        &[
+            "train",
+            "--config",
+            "experiments/main/il.toml",
+            "--out",
+            odd_str,
+        ],
+        &["not a run's", "config.toml/"],
+    );
+}
+
+/// A training run's folder belongs to its trainer, which replaces and prunes what is there:
+/// an average written into it, or into its checkpoints, is refused.
+#[test]
+fn nothing_else_writes_into_a_training_run() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let run = dir.path().join("run");
+    let checkpoint = run.join("checkpoints").join("iter-000001");
+    std::fs::create_dir_all(&checkpoint).expect("mkdir");
+    std::fs::write(run.join("checkpoints").join("latest"), "iter-000001").expect("write");
+    for out in [
+        run.clone(),
+        run.join("checkpoints/mean"),
+        run.join("x/../checkpoints/avg"),
+    ] {
+        let out = out.to_str().expect("UTF-8 path");
+        assert_refused(
+            &[
+                "model",
+                "average",
+                "--checkpoint",
+                "models/il",
+                "--checkpoint",
+                "models/rtr",
+                "--out",
+                out,
+            ],
+            &["lies in the training run", "choose a folder outside it"],
+        );
+    }
+    assert_eq!(
+        walk(&run),
+        [run.join("checkpoints/latest")],
+        "the run is as it was"
+    );
+    assert_eq!(
+        std::fs::read_dir(&run).expect("list").count(),
+        1,
+        "nothing was created in the run"
     );
 }
 

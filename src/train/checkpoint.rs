@@ -267,6 +267,15 @@ pub fn has_checkpoint(run_dir: &Path) -> bool {
     run_dir.join("checkpoints").join(LATEST).exists()
 }
 
+/// The training run folder that `path` is or lies inside (however spelled), if any: there
+/// the trainer replaces and prunes what it finds, so no other command may write there.
+pub fn enclosing_run(path: &Path) -> Option<PathBuf> {
+    crate::io::resolved(path)
+        .ancestors()
+        .find(|dir| has_checkpoint(dir))
+        .map(Path::to_path_buf)
+}
+
 /// Writes a checkpoint for `state.iteration`, points `latest` at it and deletes all but the
 /// `keep` checkpoints before it.
 pub fn save(

@@ -16,22 +16,20 @@ use super::config::TrainConfig;
 /// sha256 of every file `config` reads during a run, keyed by "field path"; a folder input
 /// gives one entry per file the run reads from it ("field folder/file"), so a change is named
 /// by its file and a file the run does not read (a scenario folder's eval/, a note beside the
-/// clips) changes nothing. The warm start counts only where the KL reference is built from
-/// it (`[reference] init`), since then every resume reads it again; otherwise only a new run
-/// reads it.
+/// clips) changes nothing. The warm start is recorded as `reference.init` where the KL
+/// reference is built from it (every resume reads it again), else as [`WARM_START`]: only a
+/// new run reads it, so a resume ignores it, but a study reusing a finished run does not.
 pub fn input_digests(config: &TrainConfig) -> Result<BTreeMap<String, String>> {
     let mut out = BTreeMap::new();
-    if let Some(init) = config
-        .init
-        .as_ref()
-        .filter(|_| reference_is_warm_start(config))
-    {
+    if let Some(init) = &config.init {
         let file = init.policy_file();
         let bytes = crate::io::read_bytes(&file, Format::Parameters)?;
-        out.insert(
-            format!("reference.init {}", file.display()),
-            sha256_hex(&bytes),
-        );
+        let field = if reference_is_warm_start(config) {
+            "reference.init"
+        } else {
+            WARM_START
+        };
+        out.insert(format!("{field} {}", file.display()), sha256_hex(&bytes));
     }
     for (field, path) in config.input_paths() {
         if field == "init.policy" {
@@ -51,6 +49,39 @@ pub fn input_digests(config: &TrainConfig) -> Result<BTreeMap<String, String>> {
         }
     }
     Ok(out)
+}
+
+/// The field under which a warm start that only a new run reads is recorded.
+const WARM_START: &str = "init.policy";
+
+/// Whether `input` (a key of [`input_digests`]) is the warm start that only a new run reads.
+fn is_warm_start(input: &str) -> bool {
+    input
+        .strip_prefix(WARM_START)
+        .is_some_and(|rest| rest.starts_with(' '))
+}
+
+/// What a run is compared against: a resume reads its inputs again, but not its warm start
+/// (the weights come from the checkpoint); a study reusing a finished run asks whether the
+/// run is what it would train now, warm start included.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Compare {
+    Resume,
+    Reuse,
+}
+
+/// The digests a resumed run records: `now`'s, but the warm start's as the run recorded it
+/// (the run was trained from that file, whatever lies at its path now); none if it recorded
+/// none.
+pub fn resumed_digests(
+    recorded: &BTreeMap<String, String>,
+    now: BTreeMap<String, String>,
+) -> BTreeMap<String, String> {
+    let kept = recorded.iter().filter(|(k, _)| is_warm_start(k));
+    now.into_iter()
+        .filter(|(k, _)| !is_warm_start(k))
+        .chain(kept.map(|(k, v)| (k.clone(), v.clone())))
+        .collect()
 }
 
 /// Whether the run builds its KL reference from the warm start, on every start and resume.
@@ -131,13 +162,21 @@ fn files_under(dir: &Path) -> Result<Vec<std::path::PathBuf>> {
 pub fn changed_input(
     recorded: &BTreeMap<String, String>,
     config: &TrainConfig,
+    compare: Compare,
 ) -> Result<Option<String>> {
     if recorded.is_empty() {
         return Ok(None);
     }
-    let now = input_digests(config)?;
+    // The warm start is compared only for a reuse, and only where the run recorded it.
+    let warm_start_counts = compare == Compare::Reuse && recorded.keys().any(|k| is_warm_start(k));
+    let recorded: BTreeMap<&String, &String> = recorded
+        .iter()
+        .filter(|(k, _)| warm_start_counts || !is_warm_start(k))
+        .collect();
+    let mut now = input_digests(config)?;
+    now.retain(|k, _| warm_start_counts || !is_warm_start(k));
     let per_folder = folder_digests(config)?;
-    for (input, then) in recorded {
+    for (&input, &then) in &recorded {
         let current = now.get(input).or_else(|| per_folder.get(input));
         let change = match current {
             Some(current) if current == then => continue,
@@ -152,8 +191,8 @@ pub fn changed_input(
     }
     // A file the run reads now and did not read then (added to a folder); a run recorded
     // with a digest per folder has compared it above.
-    let per_file = !recorded.keys().any(|k| per_folder.contains_key(k));
-    if per_file && let Some(added) = now.keys().find(|k| !recorded.contains_key(*k)) {
+    let per_file = !recorded.keys().any(|k| per_folder.contains_key(*k));
+    if per_file && let Some(added) = now.keys().find(|k| !recorded.contains_key(k)) {
         return Ok(Some(format!("{added} was not there when the run started")));
     }
     Ok(None)
@@ -173,7 +212,7 @@ pub fn check_unchanged(
     recorded: &BTreeMap<String, String>,
     config: &TrainConfig,
 ) -> Result<()> {
-    match changed_input(recorded, config)? {
+    match changed_input(recorded, config, Compare::Resume)? {
         None => Ok(()),
         Some(change) => Err(Error::InvalidArgument(format!(
             "{}: {change}; resuming would change the run's physics or data mid-run. Restore \
@@ -194,7 +233,7 @@ pub fn check_same_run(run_dir: &Path, config: &TrainConfig) -> Result<()> {
     let stored = TrainConfig::from_toml_str(&state.config_toml, &newest.display().to_string())?;
     let difference = match stored.identity_difference(config)? {
         Some(difference) => Some(difference),
-        None => changed_input(&state.input_digests, config)?,
+        None => changed_input(&state.input_digests, config, Compare::Reuse)?,
     };
     match difference {
         None => Ok(()),
@@ -219,14 +258,18 @@ mod tests {
         config.dynamics = Some(dynamics.clone());
         let then = input_digests(&config).expect("digests");
         assert_eq!(then.len(), 1);
-        assert!(changed_input(&then, &config).expect("compare").is_none());
+        assert!(
+            changed_input(&then, &config, Compare::Resume)
+                .expect("compare")
+                .is_none()
+        );
         std::fs::write(&dynamics, "[steering_lag]\ntau = 0.5\n").expect("write");
-        let change = changed_input(&then, &config)
+        let change = changed_input(&then, &config, Compare::Resume)
             .expect("compare")
             .expect("changed");
         assert!(change.starts_with("dynamics "), "{change}");
         assert!(
-            changed_input(&BTreeMap::new(), &config)
+            changed_input(&BTreeMap::new(), &config, Compare::Resume)
                 .expect("compare")
                 .is_none(),
             "an old checkpoint"
@@ -253,16 +296,20 @@ mod tests {
         std::fs::write(sets.join("eval/a.json"), "{ }").expect("write");
         std::fs::write(sets.join("train/notes.txt"), "mine").expect("write");
         std::fs::write(sets.join(".rtr-output"), "train/a.json\n").expect("write");
-        assert!(changed_input(&then, &config).expect("compare").is_none());
+        assert!(
+            changed_input(&then, &config, Compare::Resume)
+                .expect("compare")
+                .is_none()
+        );
         // A changed or added training scenario is named.
         std::fs::write(sets.join("train/a.json"), "{ }").expect("write");
-        let change = changed_input(&then, &config)
+        let change = changed_input(&then, &config, Compare::Resume)
             .expect("compare")
             .expect("changed");
         assert!(change.contains("train/a.json"), "{change}");
         std::fs::write(sets.join("train/a.json"), "{}").expect("write");
         std::fs::write(sets.join("train/b.json"), "{}").expect("write");
-        let change = changed_input(&then, &config)
+        let change = changed_input(&then, &config, Compare::Resume)
             .expect("compare")
             .expect("added");
         assert!(
@@ -270,13 +317,71 @@ mod tests {
             "{change}"
         );
         // A run recorded with the folder's digest: compared as a whole.
-        let change = changed_input(&legacy, &config)
+        let change = changed_input(&legacy, &config, Compare::Resume)
             .expect("compare")
             .expect("changed");
         assert!(change.contains("has other contents"), "{change}");
         std::fs::remove_file(sets.join("train/b.json")).expect("remove");
         std::fs::write(sets.join("eval/a.json"), "{}").expect("write");
         std::fs::remove_file(sets.join("train/notes.txt")).expect("remove");
-        assert!(changed_input(&legacy, &config).expect("compare").is_none());
+        assert!(
+            changed_input(&legacy, &config, Compare::Resume)
+                .expect("compare")
+                .is_none()
+        );
+    }
+
+    /// A warm start only a new run reads: a resume does not look at it, a study reusing the
+    /// run does, and a resumed run keeps the digest of the file it was trained from.
+    #[test]
+    fn a_changed_warm_start_stops_a_reuse_but_not_a_resume() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let warm = dir.path().join("il");
+        std::fs::create_dir(&warm).expect("mkdir");
+        std::fs::write(warm.join("policy.bpk"), "weights").expect("write");
+        let dynamics = dir.path().join("dynamics.toml");
+        std::fs::write(&dynamics, "[steering_lag]\ntau = 0.3\n").expect("write");
+        let text = format!(
+            "method = \"RL\"\n[init]\npolicy = {:?}",
+            warm.display().to_string()
+        );
+        let mut config = TrainConfig::from_toml_str(&text, "test").expect("config");
+        config.dynamics = Some(dynamics);
+        let then = input_digests(&config).expect("digests");
+        assert_eq!(
+            then.keys().filter(|k| is_warm_start(k)).count(),
+            1,
+            "{then:?}"
+        );
+        std::fs::write(warm.join("policy.bpk"), "other weights").expect("write");
+        assert!(
+            changed_input(&then, &config, Compare::Resume)
+                .expect("compare")
+                .is_none()
+        );
+        let change = changed_input(&then, &config, Compare::Reuse)
+            .expect("compare")
+            .expect("changed");
+        assert!(
+            change.starts_with("init.policy ") && change.contains("other contents"),
+            "{change}"
+        );
+        let now = input_digests(&config).expect("digests");
+        assert_eq!(resumed_digests(&then, now.clone()), then);
+        // A run recorded before warm starts were: nothing to compare the warm start with.
+        let older: BTreeMap<String, String> = then
+            .into_iter()
+            .filter(|(k, _)| !is_warm_start(k))
+            .collect();
+        assert!(
+            !resumed_digests(&older, now)
+                .keys()
+                .any(|k| is_warm_start(k))
+        );
+        assert!(
+            changed_input(&older, &config, Compare::Reuse)
+                .expect("compare")
+                .is_none()
+        );
     }
 }

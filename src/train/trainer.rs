@@ -256,7 +256,8 @@ impl<'d> Trainer<'d> {
                 let mut c = c;
                 // Unchanged: recorded from here on as this version records them (a run
                 // recorded without digests, or with one per folder, is brought up to date).
-                c.state.input_digests = digests;
+                c.state.input_digests =
+                    super::identity::resumed_digests(&c.state.input_digests, digests);
                 (
                     c.policy,
                     c.value,

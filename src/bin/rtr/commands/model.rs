@@ -47,14 +47,34 @@ pub fn run(command: ModelCommand) -> Result<()> {
     }
 }
 
+/// The kind of result set `rtr model average` writes ([`rtr::io::StagedFolder`]).
+const AVERAGED_MODEL: &str = "rtr model average";
+
 fn average(checkpoints: &[PathBuf], out: &std::path::Path) -> Result<()> {
     for path in checkpoints {
         rtr::io::check_input_path(path, "--checkpoint")?;
     }
     let inputs = rtr::io::Inputs::new().with_all("--checkpoint", checkpoints);
+    if let Some(run) = rtr::train::checkpoint::enclosing_run(out) {
+        return Err(Error::InvalidArgument(format!(
+            "--out {}: lies in the training run {}, whose trainer replaces and prunes what is \
+             there; choose a folder outside it",
+            out.display(),
+            run.display()
+        )));
+    }
     let _claim = rtr::io::claim_output_folder(out, "--out", &inputs)?;
+    if out.join("policy.bpk").exists() {
+        return Err(Error::InvalidArgument(format!(
+            "--out {} already holds a policy.bpk; choose another folder",
+            out.display()
+        )));
+    }
     let device = Backend::NdArray.device(false)?;
-    let report = rtr::eval::averaged::write_averaged_policy(checkpoints, out, &device)?;
+    // Staged: the policy, its config and averaged.json appear together or not at all.
+    let staged = rtr::io::StagedFolder::new(out, AVERAGED_MODEL)?;
+    let report = rtr::eval::averaged::write_averaged_policy(checkpoints, staged.path(), &device)?;
+    staged.commit()?;
     rtr::outln!(
         "{}: the mean of {} {} checkpoints",
         out.display(),

@@ -176,10 +176,18 @@ fn refuse_foreign_folder(out: &Path) -> Result<()> {
     if !out.is_dir() || rtr::train::checkpoint::has_checkpoint(out) {
         return Ok(());
     }
+    // A run's own entries, each of its own type: a folder named config.toml is not one.
+    let runs_own = |path: &Path, name: &str| match name {
+        "config.toml" | "curves.csv" => path.is_file(),
+        "checkpoints" => path.is_dir(),
+        _ => false,
+    };
     let foreign: Vec<String> = rtr::io::list_folder(out)?
         .iter()
-        .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
-        .filter(|n| !["config.toml", "curves.csv", "checkpoints"].contains(&n.as_str()))
+        .filter_map(|p| {
+            let name = p.file_name()?.to_string_lossy().into_owned();
+            (!runs_own(p, &name)).then(|| if p.is_dir() { format!("{name}/") } else { name })
+        })
         .collect();
     if foreign.is_empty() {
         return Ok(());
