@@ -12,8 +12,9 @@
 //!   within its range, with the family's description, set and duration (a folder drawn from
 //!   families of one's own is checked without them).
 //!
-//! Checked where a set or a single file is loaded for use ([`check_reference`], one rollout):
-//! simulating the scenario with the reference driver gives the recorded `reference`.
+//! Checked where a set or a single file without its content digest is loaded for use
+//! ([`check_reference`], one rollout): simulating the scenario with the reference driver
+//! gives the recorded `reference`.
 
 use std::sync::OnceLock;
 

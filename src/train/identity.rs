@@ -23,13 +23,17 @@ pub fn input_digests(config: &TrainConfig) -> Result<BTreeMap<String, String>> {
     let mut out = BTreeMap::new();
     if let Some(init) = &config.init {
         let file = init.policy_file();
-        let bytes = crate::io::read_bytes(&file, Format::Parameters)?;
-        let field = if reference_is_warm_start(config) {
-            "reference.init"
-        } else {
-            WARM_START
-        };
-        out.insert(format!("{field} {}", file.display()), sha256_hex(&bytes));
+        let reference = reference_is_warm_start(config);
+        // A warm start that is gone only matters to a new run, whose loading names it.
+        if reference || file.is_file() {
+            let bytes = crate::io::read_bytes(&file, Format::Parameters)?;
+            let field = if reference {
+                "reference.init"
+            } else {
+                WARM_START
+            };
+            out.insert(format!("{field} {}", file.display()), sha256_hex(&bytes));
+        }
     }
     for (field, path) in config.input_paths() {
         if field == "init.policy" {
@@ -368,6 +372,15 @@ mod tests {
         );
         let now = input_digests(&config).expect("digests");
         assert_eq!(resumed_digests(&then, now.clone()), then);
+        // Gone, it stops neither a resume nor the record of what the run was trained from.
+        std::fs::remove_file(warm.join("policy.bpk")).expect("remove");
+        assert!(
+            changed_input(&then, &config, Compare::Resume)
+                .expect("compare")
+                .is_none()
+        );
+        let gone = input_digests(&config).expect("digests without the warm start");
+        assert_eq!(resumed_digests(&then, gone), then);
         // A run recorded before warm starts were: nothing to compare the warm start with.
         let older: BTreeMap<String, String> = then
             .into_iter()
