@@ -226,16 +226,7 @@ fn an_output_that_is_not_a_file_is_refused_and_a_link_is_written_through() {
             "--out",
             &below("a.xodr"),
         ],
-        vec![
-            "model",
-            "average",
-            "--checkpoint",
-            "models/il",
-            "--checkpoint",
-            "models/rtr",
-            "--out",
-            &below("mean"),
-        ],
+        average_into(&below("mean")),
     ] {
         assert_refused(
             &args,
@@ -734,6 +725,12 @@ fn a_folder_of_the_users_is_never_written_over() {
     );
 }
 
+/// `rtr model average` of two shipped models into `out`.
+fn average_into(out: &str) -> Vec<&str> {
+    let models = ["--checkpoint", "models/il", "--checkpoint", "models/rtr"];
+    [&["model", "average"][..], &models, &["--out", out]].concat()
+}
+
 /// A training run's folder belongs to its trainer, which replaces and prunes what is there:
 /// an average written into it, or into its checkpoints, is refused.
 #[test]
@@ -750,16 +747,7 @@ fn nothing_else_writes_into_a_training_run() {
     ] {
         let out = out.to_str().expect("UTF-8 path");
         assert_refused(
-            &[
-                "model",
-                "average",
-                "--checkpoint",
-                "models/il",
-                "--checkpoint",
-                "models/rtr",
-                "--out",
-                out,
-            ],
+            &average_into(out),
             &["lies in the training run", "choose a folder outside it"],
         );
     }
