@@ -528,8 +528,8 @@ fn eval_prints_the_table_row_and_writes_the_documented_json() {
         .lines()
         .find(|l| l.starts_with("| IL |"))
         .expect("an IL row");
-    // Method + 10 nominal metrics + the realism score.
-    assert_eq!(row.matches('|').count(), 13, "{row}");
+    // Method + 11 nominal metrics + the realism score.
+    assert_eq!(row.matches('|').count(), 14, "{row}");
     let json: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out_dir.join("results.json")).expect("results.json"))
             .expect("JSON");
@@ -538,6 +538,7 @@ fn eval_prints_the_table_row_and_writes_the_documented_json() {
         "collision_pct",
         "offroad_pct",
         "infraction_pct",
+        "hit_by_log_pct",
         "fde_m",
         "ate_m",
         "cte_m",

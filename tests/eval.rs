@@ -10,7 +10,7 @@ use rtr::eval::bootstrap::{estimate, resampled_totals, total};
 use rtr::eval::{
     EvalConfig, EvalScenes, Feature, Metric, SceneTally, evaluate_tallies, summarise, tally_rollout,
 };
-use rtr::scene::{Scene, SceneBatch};
+use rtr::scene::{AgentRole, Scene, SceneBatch};
 use rtr::sim::{Dynamics, MapCaches, RolloutConfig, coast, replay_logs, rollout};
 
 fn cpu() -> Device {
@@ -104,6 +104,50 @@ fn coasting_agents_score_worse_than_the_log() {
     let t = total(&coasted).unwrap();
     let acc = &t.simulated[0];
     assert_eq!(acc.counts.iter().filter(|&&c| c > 0.0).count(), 1);
+}
+
+/// Collision and hit-by-log rates of one coasting rollout of a straight-road scene of
+/// constant-speed agents `(x, speed, role)` in one lane.
+fn rear_end_rates(agents: &[(f64, f64, AgentRole)]) -> (f64, f64) {
+    let y = -1.875;
+    let placed: Vec<(f64, f64, f64, f64)> =
+        agents.iter().map(|&(x, v, _)| (x, y, 0.0, v)).collect();
+    // 4 s: long enough for a replayed car to drive on through the car it struck.
+    let mut scene = common::straight_scene(&placed, 8);
+    for (agent, &(_, _, role)) in scene.agents.iter_mut().zip(agents) {
+        agent.role = role;
+    }
+    let batch = SceneBatch::from_scenes(&[&scene], &cpu()).expect("batch");
+    let out = rollout(
+        &[&scene],
+        &batch,
+        &Dynamics::bicycle(0.5),
+        &mut coast,
+        &mut MapCaches::default(),
+        &RolloutConfig::default(),
+    )
+    .expect("rollout");
+    let tallies = tally_rollout(&[&scene], &out, 8, false).expect("tally");
+    (
+        metric(&tallies, Metric::CollisionPct),
+        metric(&tallies, Metric::HitByLogPct),
+    )
+}
+
+/// A log-replayed car cannot brake: when one runs into a slower policy car from behind, the
+/// policy car is counted as hit by the log, not as colliding. A policy car that drives into a
+/// replayed one, or is run into by another policy car, still collides.
+#[test]
+fn a_rear_end_by_a_replayed_car_is_not_the_policy_cars_collision() {
+    use AgentRole::{Controlled, Replayed};
+    let struck_by_log = rear_end_rates(&[(100.0, 10.0, Controlled), (80.0, 30.0, Replayed)]);
+    assert_eq!(struck_by_log, (0.0, 100.0));
+    let drove_into_log = rear_end_rates(&[(80.0, 30.0, Controlled), (100.0, 10.0, Replayed)]);
+    assert_eq!(drove_into_log, (100.0, 0.0));
+    let policy_pair = rear_end_rates(&[(100.0, 10.0, Controlled), (80.0, 30.0, Controlled)]);
+    assert_eq!(policy_pair, (100.0, 0.0));
+    let apart = rear_end_rates(&[(100.0, 30.0, Controlled), (40.0, 10.0, Replayed)]);
+    assert_eq!(apart, (0.0, 0.0));
 }
 
 #[test]

@@ -3,13 +3,10 @@
 
 mod common;
 
-use std::sync::Arc;
-
 use burn::prelude::*;
 use burn::tensor::{Bool, TensorData};
-use rtr::data::{AgentState, VehicleClass};
-use rtr::map::{BoxOnRoad, LaneGraph, Map, ProceduralMap};
-use rtr::scene::{AgentRole, Scene, SceneAgent, SceneBatch};
+use rtr::map::BoxOnRoad;
+use rtr::scene::{AgentRole, Scene, SceneBatch};
 use rtr::sim::{
     Controls, Dynamics, MapCaches, Observation, Policy, Rollout, RolloutConfig, Scripted, coast,
     replay_logs, rollout,
@@ -75,7 +72,7 @@ fn scripted_rollout(
 #[test]
 fn scripted_agents_take_the_script_and_others_the_policy() {
     let y = -1.875;
-    let scene = straight_scene(&[(100.0, y, 0.0, 20.0), (200.0, y, 0.0, 20.0)], 4);
+    let scene = common::straight_scene(&[(100.0, y, 0.0, 20.0), (200.0, y, 0.0, 20.0)], 4);
     let batch = SceneBatch::from_scenes(&[&scene], &cpu()).expect("batch");
     let mask = Tensor::<2>::from_data(TensorData::new(vec![1.0f32, 0.0], [1, 2]), &cpu())
         .greater_elem(0.5);
@@ -97,7 +94,7 @@ fn scripted_agents_take_the_script_and_others_the_policy() {
 #[test]
 fn heroes_are_never_simulated_policy_agents() {
     let y = -1.875;
-    let mut scene = straight_scene(&[(100.0, y, 0.0, 20.0), (200.0, y, 0.0, 20.0)], 4);
+    let mut scene = common::straight_scene(&[(100.0, y, 0.0, 20.0), (200.0, y, 0.0, 20.0)], 4);
     scene.agents[1].role = AgentRole::Hero;
     let batch = SceneBatch::from_scenes(&[&scene], &cpu()).expect("batch");
     let out = scripted_rollout(&scene, &batch, &mut coast, batch.agent_hero.clone());
@@ -108,60 +105,6 @@ fn heroes_are_never_simulated_policy_agents() {
     // The hero still moved: driven by its script through the dynamics.
     let poses = values(out.poses.reshape([1, 2, 4 * (steps)]));
     assert!(poses[4 * steps + 4 * (steps - 1)] > 200.0 + 20.0 * 0.5 * (steps - 2) as f64);
-}
-
-/// A one-way straight road (2 lanes of 3.75 m, 400 m) and a scene of hand-placed agents with
-/// one history step and `future` steps, each agent constant-speed in the log.
-fn straight_scene(agents: &[(f64, f64, f64, f64)], future: usize) -> Scene {
-    let od = ProceduralMap::Straight {
-        lanes: 2,
-        lane_width: 3.75,
-        length: 400.0,
-        layout: Default::default(),
-    }
-    .build()
-    .expect("map");
-    let map = Arc::new(Map::from_opendrive(&od, "test-straight").expect("map"));
-    let graph = Arc::new(LaneGraph::build(&map, 10.0));
-    let dt = 0.5;
-    let steps = 1 + 1 + future;
-    let agents = agents
-        .iter()
-        .enumerate()
-        .map(|(i, &(x, y, heading, speed))| {
-            let states = (0..steps)
-                .map(|k| {
-                    let t = (k as f64 - 1.0) * dt;
-                    AgentState {
-                        x: x + speed * t * heading.cos(),
-                        y: y + speed * t * heading.sin(),
-                        heading,
-                        speed,
-                        accel: 0.0,
-                    }
-                })
-                .collect();
-            SceneAgent {
-                track_id: i,
-                class: VehicleClass::Car,
-                length: 4.5,
-                width: 1.8,
-                role: AgentRole::Controlled,
-                states,
-                valid: vec![true; steps],
-            }
-        })
-        .collect();
-    Scene {
-        id: "hand-built".into(),
-        t0: 0.0,
-        dt,
-        history_steps: 1,
-        future_steps: future,
-        map,
-        lane_graph: graph,
-        agents,
-    }
 }
 
 fn run(scene: &Scene) -> rtr::sim::Rollout {
@@ -183,7 +126,7 @@ fn head_on_agents_collide_at_the_right_step() {
     // they touch at 2.775 s, so the boxes first overlap at step 6 (3.0 s), i.e. on the
     // transition with index 5.
     let y = -1.875;
-    let scene = straight_scene(
+    let scene = common::straight_scene(
         &[
             (100.0, y, 0.0, 10.0),
             (160.0, y, std::f64::consts::PI, 10.0),
@@ -214,7 +157,7 @@ fn a_car_that_passes_through_a_stopped_one_within_a_step_collides() {
     // the boxes (4.5 m long) overlap neither at the start nor at the end of the step, only
     // during it.
     let y = -1.875;
-    let scene = straight_scene(&[(100.0, y, 0.0, 30.0), (110.0, y, 0.0, 0.0)], 4);
+    let scene = common::straight_scene(&[(100.0, y, 0.0, 30.0), (110.0, y, 0.0, 0.0)], 4);
     let out = run(&scene);
     let collision = flags(&out.collision);
     let t = out.steps;
@@ -237,7 +180,7 @@ fn a_car_steered_off_the_road_is_flagged_at_the_right_step_and_leaving_the_end_i
     // analytically moved box.
     let heading = -0.12;
     let (x0, y0, v) = (100.0, -1.875, 20.0);
-    let scene = straight_scene(&[(x0, y0, heading, v)], 10);
+    let scene = common::straight_scene(&[(x0, y0, heading, v)], 10);
     let expected = (1..=10).find(|&k| {
         let d = v * 0.5 * k as f64;
         let b = rtr::geometry::OrientedBox::new(
@@ -255,7 +198,7 @@ fn a_car_steered_off_the_road_is_flagged_at_the_right_step_and_leaving_the_end_i
     assert_eq!(first, expected);
 
     // Along the lane towards the end at 400 m: leaves the map, never off-road.
-    let scene = straight_scene(&[(385.0, -1.875, 0.0, 20.0)], 10);
+    let scene = common::straight_scene(&[(385.0, -1.875, 0.0, 20.0)], 10);
     let out = run(&scene);
     assert!(!flags(&out.offroad).iter().any(|&f| f));
     assert!(!flags(&out.collision).iter().any(|&f| f));
@@ -270,7 +213,7 @@ fn a_car_steered_off_the_road_is_flagged_at_the_right_step_and_leaving_the_end_i
 fn heroes_are_simulated_without_a_log_and_their_infractions_are_not_the_policys() {
     // Head-on as above, but agent 1 is a scripted hero whose log ends at the current step.
     let y = -1.875;
-    let mut scene = straight_scene(
+    let mut scene = common::straight_scene(
         &[
             (100.0, y, 0.0, 10.0),
             (160.0, y, std::f64::consts::PI, 10.0),

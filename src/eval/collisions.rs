@@ -13,6 +13,7 @@ use super::tally::{bools, floats};
 use crate::geometry::{BoxMotion, OrientedBox};
 use crate::scene::{AgentRole, Scene};
 use crate::sim::Rollout;
+use crate::sim::infractions::in_rear_quarter;
 
 /// Where the other vehicle was, in the colliding agent's frame, one step before the first
 /// contact.
@@ -161,88 +162,189 @@ pub const ROLES: [(AgentRole, &str); 3] = [
     (AgentRole::Replayed, "replayed"),
 ];
 
+/// The rollout's boxes on the host: each agent's footprint and its motion over a step.
+struct HostBoxes {
+    n: usize,
+    t1: usize,
+    poses: Vec<f32>,
+    present: Vec<bool>,
+    collision: Vec<bool>,
+    offroad: Vec<bool>,
+}
+
+impl HostBoxes {
+    fn new(out: &Rollout) -> Self {
+        let [_, n, t1, _] = out.poses.dims();
+        Self {
+            n,
+            t1,
+            poses: floats(out.poses.clone()),
+            present: bools(out.present.clone()),
+            collision: bools(out.collision.clone()),
+            offroad: bools(out.offroad.clone()),
+        }
+    }
+
+    fn steps(&self) -> usize {
+        self.t1 - 1
+    }
+
+    /// Centre x, y, heading, speed of agent `i` of scene `b` at step `t`.
+    fn pose(&self, b: usize, i: usize, t: usize) -> [f64; 4] {
+        let k = ((b * self.n + i) * self.t1 + t) * 4;
+        std::array::from_fn(|c| self.poses[k + c] as f64)
+    }
+
+    /// Index of agent `i`'s first transition flag in `[B][N][T]` arrays.
+    fn row(&self, b: usize, i: usize) -> usize {
+        (b * self.n + i) * self.steps()
+    }
+
+    fn present(&self, b: usize, j: usize, t: usize) -> bool {
+        self.present[(b * self.n + j) * self.t1 + t]
+    }
+
+    /// Agent `j`'s box over the transition into step `t + 1` (still where it appeared then).
+    fn motion(&self, scene: &Scene, b: usize, j: usize, t: usize) -> BoxMotion {
+        let a = &scene.agents[j];
+        let footprint = |t: usize| {
+            let p = self.pose(b, j, t);
+            OrientedBox::new([p[0], p[1]], p[2], a.length, a.width)
+        };
+        let to = footprint(t + 1);
+        if self.present(b, j, t) {
+            BoxMotion {
+                from: footprint(t),
+                to,
+            }
+        } else {
+            BoxMotion::still(to)
+        }
+    }
+
+    /// The vehicles agent `i` touched during the transition into step `t + 1`, each with the
+    /// fraction of the step at the first contact.
+    fn contacts(&self, scene: &Scene, b: usize, i: usize, t: usize) -> Vec<(usize, f64)> {
+        let agents = scene.agents.len().min(self.n);
+        let me = self.motion(scene, b, i, t);
+        (0..agents)
+            .filter(|&j| j != i && self.present(b, j, t + 1))
+            .filter_map(|j| {
+                me.first_contact(&self.motion(scene, b, j, t))
+                    .map(|s| (j, s))
+            })
+            .collect()
+    }
+
+    /// The controlled agents of scene `b`.
+    fn controlled(&self, scene: &Scene) -> Vec<usize> {
+        (0..scene.agents.len().min(self.n))
+            .filter(|&i| scene.agents[i].role == AgentRole::Controlled)
+            .collect()
+    }
+}
+
 /// Per scene of the batch, its controlled agents' first collisions.
 pub(super) fn first_collisions(
     scenes: &[&Scene],
     out: &Rollout,
     dt: f64,
 ) -> Vec<Vec<FirstCollision>> {
-    let [_, n, t1, _] = out.poses.dims();
-    let steps = t1 - 1;
-    let poses = floats(out.poses.clone());
-    let (present, collision, offroad) = (
-        bools(out.present.clone()),
-        bools(out.collision.clone()),
-        bools(out.offroad.clone()),
-    );
-    let pose = |b: usize, i: usize, t: usize| {
-        let k = ((b * n + i) * t1 + t) * 4;
-        [
-            poses[k] as f64,
-            poses[k + 1] as f64,
-            poses[k + 2] as f64,
-            poses[k + 3] as f64,
-        ]
-    };
+    let host = HostBoxes::new(out);
     scenes
         .iter()
         .enumerate()
         .map(|(b, scene)| {
-            let agents = scene.agents.len().min(n);
-            let footprint = |i: usize, t: usize| {
-                let p = pose(b, i, t);
-                let a = &scene.agents[i];
-                OrientedBox::new([p[0], p[1]], p[2], a.length, a.width)
-            };
-            let controlled: Vec<usize> = (0..agents)
-                .filter(|&i| scene.agents[i].role == AgentRole::Controlled)
-                .collect();
-            let mut found = Vec::new();
-            for &i in &controlled {
-                let row = (b * n + i) * steps;
-                let Some(t) = (0..steps).find(|&t| collision[row + t]) else {
-                    continue;
-                };
-                // The flag at t is the transition into step t + 1: the boxes touched during it.
-                let motion = |j: usize| {
-                    let to = footprint(j, t + 1);
-                    if present[(b * n + j) * t1 + t] {
-                        BoxMotion {
-                            from: footprint(j, t),
-                            to,
-                        }
-                    } else {
-                        BoxMotion::still(to)
-                    }
-                };
-                let me = motion(i);
-                let other = (0..agents).find(|&j| {
-                    j != i
-                        && present[(b * n + j) * t1 + t + 1]
-                        && me.first_contact(&motion(j)).is_some()
-                });
-                let Some(j) = other else { continue };
-                // Where the other was one step before the contact: at the contact a fast
-                // closing vehicle may already have passed the other's centre.
-                let (p, q) = (pose(b, i, t), pose(b, j, t));
-                let (dx, dy) = (q[0] - p[0], q[1] - p[1]);
-                let (sin, cos) = p[2].sin_cos();
-                found.push(FirstCollision {
-                    scene: scene.id.clone(),
-                    agent: i,
-                    time_s: (t + 1) as f64 * dt,
-                    with: scene.agents[j].role,
-                    contact: Contact::from_offset(cos * dx + sin * dy, -sin * dx + cos * dy),
-                    after_offroad: (0..t).any(|s| offroad[row + s]),
-                    speed: pose(b, i, t)[3],
-                    other_speed: pose(b, j, t)[3],
-                    start_speed: pose(b, i, 0)[3],
-                    other_start_speed: pose(b, j, 0)[3],
-                });
-            }
-            found
+            host.controlled(scene)
+                .into_iter()
+                .filter_map(|i| first_collision(&host, scene, b, i, dt))
+                .collect()
         })
         .collect()
+}
+
+fn first_collision(
+    host: &HostBoxes,
+    scene: &Scene,
+    b: usize,
+    i: usize,
+    dt: f64,
+) -> Option<FirstCollision> {
+    let row = host.row(b, i);
+    // The flag at t is the transition into step t + 1: the boxes touched during it.
+    let t = (0..host.steps()).find(|&t| host.collision[row + t])?;
+    let (j, _) = *host.contacts(scene, b, i, t).first()?;
+    // Where the other was one step before the contact: at the contact a fast closing vehicle
+    // may already have passed the other's centre.
+    let (p, q) = (host.pose(b, i, t), host.pose(b, j, t));
+    let (dx, dy) = (q[0] - p[0], q[1] - p[1]);
+    let (sin, cos) = p[2].sin_cos();
+    Some(FirstCollision {
+        scene: scene.id.clone(),
+        agent: i,
+        time_s: (t + 1) as f64 * dt,
+        with: scene.agents[j].role,
+        contact: Contact::from_offset(cos * dx + sin * dy, -sin * dx + cos * dy),
+        after_offroad: (0..t).any(|s| host.offroad[row + s]),
+        speed: p[3],
+        other_speed: q[3],
+        start_speed: host.pose(b, i, 0)[3],
+        other_start_speed: host.pose(b, j, 0)[3],
+    })
+}
+
+/// Per scene of the batch and per agent: it collided, and every vehicle it touched was a
+/// log-replayed one running into it from behind (its centre in the agent's rear quarter at
+/// their first contact, the simulator's at-fault rule).
+///
+/// The paper's policy controls every vehicle of a scene. Ours also replay, unchanged, the
+/// vehicles that enter the road after the start; a replayed car cannot brake, so a policy
+/// car slower than the log is run into by recordings. That is a collision the paper's
+/// setting cannot produce, and evaluation reports it apart (`hit_by_log_pct`), not as one.
+pub(super) fn hit_only_by_log(scenes: &[&Scene], out: &Rollout) -> Vec<Vec<bool>> {
+    let host = HostBoxes::new(out);
+    scenes
+        .iter()
+        .enumerate()
+        .map(|(b, scene)| {
+            let mut hit = vec![false; scene.agents.len().min(host.n)];
+            for i in host.controlled(scene) {
+                hit[i] = collided_only_with_replays_from_behind(&host, scene, b, i);
+            }
+            hit
+        })
+        .collect()
+}
+
+fn collided_only_with_replays_from_behind(
+    host: &HostBoxes,
+    scene: &Scene,
+    b: usize,
+    i: usize,
+) -> bool {
+    let row = host.row(b, i);
+    // Each vehicle touched is judged where it first touched: a replayed car drives on through
+    // the car it struck, and its later overlap is the same collision.
+    let mut judged: Vec<usize> = Vec::new();
+    for t in (0..host.steps()).filter(|&t| host.collision[row + t]) {
+        let contacts = host.contacts(scene, b, i, t);
+        // A flag whose contact this scan cannot find stays the agent's collision.
+        if contacts.is_empty() && !judged.iter().any(|&j| host.present(b, j, t + 1)) {
+            return false;
+        }
+        let me = host.motion(scene, b, i, t);
+        for (j, s) in contacts {
+            if judged.contains(&j) {
+                continue;
+            }
+            let from_behind = in_rear_quarter(&me.at(s), &host.motion(scene, b, j, t).at(s));
+            if scene.agents[j].role != AgentRole::Replayed || !from_behind {
+                return false;
+            }
+            judged.push(j);
+        }
+    }
+    !judged.is_empty()
 }
 
 #[cfg(test)]

@@ -21,6 +21,10 @@ pub struct SceneTally {
     /// Agents with at least one collision or off-road step (either infraction).
     #[serde(default)]
     pub infracted: f64,
+    /// Agents whose only collisions were log-replayed vehicles running into them from behind
+    /// (not in `collided`: [`super::collisions::hit_only_by_log`]).
+    #[serde(default)]
+    pub hit_by_log: f64,
     /// FDE, ATE and CTE summed over the agents simulated and logged at the FDE horizon, and
     /// their count. ATE and CTE split the final displacement along and across the logged path
     /// (as the paper's table, where ATE^2 + CTE^2 ~ FDE^2).
@@ -40,6 +44,7 @@ impl Default for SceneTally {
             collided: 0.0,
             offroad: 0.0,
             infracted: 0.0,
+            hit_by_log: 0.0,
             fde_sum: 0.0,
             ate_sum: 0.0,
             cte_sum: 0.0,
@@ -60,6 +65,7 @@ impl Additive for SceneTally {
         self.collided += t * o.collided;
         self.offroad += t * o.offroad;
         self.infracted += t * o.infracted;
+        self.hit_by_log += t * o.hit_by_log;
         self.fde_sum += t * o.fde_sum;
         self.ate_sum += t * o.ate_sum;
         self.cte_sum += t * o.cte_sum;
@@ -80,6 +86,9 @@ pub enum Metric {
     OffroadPct,
     /// Agents with either infraction (not in the paper).
     InfractionPct,
+    /// Agents run into from behind by a log-replayed vehicle and in no other collision (not
+    /// in the paper, whose scenes replay no vehicle; not counted in `CollisionPct`).
+    HitByLogPct,
     FdeM,
     AteM,
     CteM,
@@ -88,10 +97,11 @@ pub enum Metric {
 
 impl Metric {
     /// The columns in the paper's order.
-    pub const ALL: [Metric; 10] = [
+    pub const ALL: [Metric; 11] = [
         Metric::CollisionPct,
         Metric::OffroadPct,
         Metric::InfractionPct,
+        Metric::HitByLogPct,
         Metric::FdeM,
         Metric::AteM,
         Metric::CteM,
@@ -107,6 +117,7 @@ impl Metric {
             Metric::CollisionPct => "collision_pct".into(),
             Metric::OffroadPct => "offroad_pct".into(),
             Metric::InfractionPct => "infraction_pct".into(),
+            Metric::HitByLogPct => "hit_by_log_pct".into(),
             Metric::FdeM => "fde_m".into(),
             Metric::AteM => "ate_m".into(),
             Metric::CteM => "cte_m".into(),
@@ -120,6 +131,7 @@ impl Metric {
             Metric::CollisionPct => "Col (%)".into(),
             Metric::OffroadPct => "Off (%)".into(),
             Metric::InfractionPct => "Any (%)".into(),
+            Metric::HitByLogPct => "Hit by log (%)".into(),
             Metric::FdeM => "FDE (m)".into(),
             Metric::AteM => "ATE (m)".into(),
             Metric::CteM => "CTE (m)".into(),
@@ -127,7 +139,8 @@ impl Metric {
         }
     }
 
-    /// Needs logged futures of the controlled agents (real nominal scenes only).
+    /// Needs the logs of real scenes: logged futures of the controlled agents, or (hit by the
+    /// log) replayed vehicles. Real nominal scenes only.
     pub fn needs_log(self) -> bool {
         !matches!(
             self,
@@ -142,6 +155,7 @@ impl Metric {
             Metric::CollisionPct => ratio(100.0 * t.collided, t.agents),
             Metric::OffroadPct => ratio(100.0 * t.offroad, t.agents),
             Metric::InfractionPct => ratio(100.0 * t.infracted, t.agents),
+            Metric::HitByLogPct => ratio(100.0 * t.hit_by_log, t.agents),
             Metric::FdeM => ratio(t.fde_sum, t.fde_agents),
             Metric::AteM => ratio(t.ate_sum, t.fde_agents),
             Metric::CteM => ratio(t.cte_sum, t.fde_agents),
@@ -215,6 +229,7 @@ mod tests {
                 "collision_pct",
                 "offroad_pct",
                 "infraction_pct",
+                "hit_by_log_pct",
                 "fde_m",
                 "ate_m",
                 "cte_m",

@@ -83,7 +83,9 @@ pub fn results_json(methods: &[MethodResult]) -> Value {
 /// The digits a metric is shown with.
 fn decimals(m: Metric) -> usize {
     match m {
-        Metric::CollisionPct | Metric::OffroadPct | Metric::InfractionPct => 1,
+        Metric::CollisionPct | Metric::OffroadPct | Metric::InfractionPct | Metric::HitByLogPct => {
+            1
+        }
         Metric::FdeM | Metric::AteM | Metric::CteM => 2,
         Metric::Jsd(_) => 3,
     }
@@ -265,9 +267,9 @@ mod tests {
         let table = markdown_table(&[m], &sets);
         let lines: Vec<&str> = table.lines().collect();
         assert_eq!(lines.len(), 3);
-        // Method + 10 nominal + 3 long-tail columns.
-        assert_eq!(lines[0].matches('|').count(), 15);
-        assert_eq!(lines[2].matches('|').count(), 15);
+        // Method + 11 nominal + 3 long-tail columns.
+        assert_eq!(lines[0].matches('|').count(), 16);
+        assert_eq!(lines[2].matches('|').count(), 16);
         assert!(lines[0].contains("longtail Any (%)"));
         assert!(lines[0].contains("longtail Col (%)"));
         assert!(lines[2].contains("7.5 ± 0.5"));

@@ -5,6 +5,7 @@
 use burn::prelude::*;
 use burn::tensor::Bool;
 
+use super::collisions::hit_only_by_log;
 use super::features::{Feature, lane_deviation, lead_gap};
 use super::histogram::Histogram;
 use super::metrics::SceneTally;
@@ -138,7 +139,9 @@ fn add_features(hist: &mut [Histogram], features: StepFeatures) {
 
 /// Tallies each scene of a rollout over `scenes` (the batch's scenes, in order).
 ///
-/// - Infractions: a controlled agent counts once if any step of the rollout flags it.
+/// - Infractions: a controlled agent counts once if any step of the rollout flags it, except
+///   that an agent whose every collision was a log-replayed vehicle running into it from
+///   behind counts in `hit_by_log` instead ([`super::collisions::hit_only_by_log`]).
 /// - With `with_log` (real scenes, whose controlled agents have logged futures): FDE and its
 ///   along-/cross-track split (ATE, CTE) at step `fde_step`, for agents simulated and logged
 ///   then;
@@ -157,17 +160,43 @@ pub fn tally_rollout(
             scenes.len()
         )));
     }
+    refuse_non_finite(&host, scenes)?;
+    let hit_by_log = hit_only_by_log(scenes, out);
     Ok(scenes
         .iter()
+        .zip(&hit_by_log)
         .enumerate()
-        .map(|(b, scene)| tally_scene(&host, b, scene, fde_step, with_log))
+        .map(|(b, (scene, hit))| tally_scene(&host, b, scene, hit, fde_step, with_log))
         .collect())
+}
+
+/// Refuses a rollout that put a present agent at a non-finite pose: every metric of it would
+/// be NaN, and the cause is the policy (weights that have diverged), not the scene.
+fn refuse_non_finite(host: &HostRollout, scenes: &[&Scene]) -> Result<()> {
+    for (b, scene) in scenes.iter().enumerate() {
+        for i in 0..host.agents(scene) {
+            for t in 0..=host.steps {
+                let k = host.at(b, i, t);
+                if host.present[k] && host.poses[k * 4..k * 4 + 4].iter().any(|v| !v.is_finite()) {
+                    return Err(Error::InvalidArgument(format!(
+                        "scene {}: agent {i} has a non-finite pose {:.1} s into the rollout; the \
+                         policy's outputs are not finite (weights from a diverged run?), so no \
+                         metric of it means anything",
+                        scene.id,
+                        t as f64 * scene.dt
+                    )));
+                }
+            }
+        }
+    }
+    Ok(())
 }
 
 fn tally_scene(
     host: &HostRollout,
     b: usize,
     scene: &Scene,
+    hit_by_log: &[bool],
     fde_step: usize,
     with_log: bool,
 ) -> SceneTally {
@@ -178,7 +207,9 @@ fn tally_scene(
         .collect();
     for &i in &controlled {
         tally.agents += 1.0;
-        let collided = host.any_flag(&host.collision, b, i);
+        let hit_only_by_log = hit_by_log.get(i).copied().unwrap_or(false);
+        let collided = host.any_flag(&host.collision, b, i) && !hit_only_by_log;
+        tally.hit_by_log += f64::from(u8::from(hit_only_by_log));
         let offroad = host.any_flag(&host.offroad, b, i);
         tally.collided += f64::from(u8::from(collided));
         tally.offroad += f64::from(u8::from(offroad));

@@ -95,7 +95,7 @@ pub struct StepInfractions {
 }
 
 /// `other`'s centre lies in `own`'s rear quarter: behind it, less to the side than behind.
-fn in_rear_quarter(own: &OrientedBox, other: &OrientedBox) -> bool {
+pub(crate) fn in_rear_quarter(own: &OrientedBox, other: &OrientedBox) -> bool {
     let (dx, dy) = (
         other.center[0] - own.center[0],
         other.center[1] - own.center[1],
