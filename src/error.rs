@@ -9,7 +9,7 @@ pub type Result<T, E = Error> = std::result::Result<T, E>;
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
     /// A file could not be opened or read.
-    #[error("{path}: {source}")]
+    #[error("{}: {source}", shown_path(path))]
     Io {
         path: PathBuf,
         #[source]
@@ -63,6 +63,15 @@ pub enum Error {
     /// A command-line value or configuration value that is out of range.
     #[error("invalid argument: {0}")]
     InvalidArgument(String),
+}
+
+/// A path as an error shows it: an empty one (a field or flag given as "") said in words.
+fn shown_path(path: &std::path::Path) -> String {
+    if path.as_os_str().is_empty() {
+        "an empty path (\"\"), where a file name was expected,".into()
+    } else {
+        path.display().to_string()
+    }
 }
 
 impl Error {

@@ -1040,6 +1040,14 @@ fn model_average_writes_a_loadable_policy_and_refuses_mixed_runs() {
     assert!(!ok && err.contains("one run") && !other.exists(), "{err}");
     let (ok, err) = average(&[il], &other);
     assert!(!ok && err.contains("at least two"), "{err}");
+    // Another seed of the same run file is another run.
+    let reseeded = dir.path().join("reseeded");
+    std::fs::create_dir(&reseeded).expect("folder");
+    std::fs::write(reseeded.join("config.toml"), with_seed(&config, 12345)).expect("config");
+    std::fs::copy(second.join("policy.bpk"), reseeded.join("policy.bpk")).expect("policy");
+    let reseeded = reseeded.to_str().expect("utf-8 path");
+    let (ok, err) = average(&[il, reseeded], &other);
+    assert!(!ok && err.contains("seed") && !other.exists(), "{err}");
 
     // A run whose dynamics file sits beside its config: the averaged folder, elsewhere, still
     // finds it.
@@ -1056,12 +1064,32 @@ fn model_average_writes_a_loadable_policy_and_refuses_mixed_runs() {
         "[[terms]]\neffect = \"accel_lag\"\nparams = { tau_s = 0.8 }\n",
     )
     .expect("dynamics written");
-    let run = run.to_str().expect("utf-8 path");
+    // A second policy of that run (the same run file and dynamics, in its own folder).
+    let run_b = dir.path().join("run_b");
+    std::fs::create_dir(&run_b).expect("run folder");
+    for file in ["config.toml", "dynamics.toml"] {
+        std::fs::copy(run.join(file), run_b.join(file)).expect("copy");
+    }
+    std::fs::copy(format!("{il}/policy.bpk"), run_b.join("policy.bpk")).expect("policy");
+    let (run, run_b) = (
+        run.to_str().expect("utf-8 path"),
+        run_b.to_str().expect("utf-8 path"),
+    );
+    // A run with a dynamics file is not a checkpoint of one without.
+    let (ok, err) = average(&[run, il], &other);
+    assert!(!ok && err.contains("dynamics"), "{err}");
     let moved = dir.path().join("elsewhere").join("mean");
-    let (ok, err) = average(&[run, il], &moved);
+    let (ok, err) = average(&[run, run_b], &moved);
     assert!(ok, "{err}");
     let loaded = rtr::eval::trained::TrainedPolicy::load(&moved, &device).expect("loads");
     assert!(loaded.config.dynamics.is_some());
+}
+
+/// A run file's text with its top-level `seed` set to `seed`.
+fn with_seed(config: &str, seed: u64) -> String {
+    let mut table: toml::Table = config.parse().expect("TOML run file");
+    table.insert("seed".into(), toml::Value::Integer(seed as i64));
+    toml::to_string(&table).expect("TOML")
 }
 
 /// A policy network's parameters as the bytes of a `policy.bpk`.

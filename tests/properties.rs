@@ -391,7 +391,7 @@ const fn setting(
 const SETTINGS: [Setting; 8] = [
     setting("", "alpha", 0.0, 1.0, true),
     setting("", "lambda", 0.0, 1e6, false),
-    setting("optimizer", "learning_rate", 1e-12, 10.0, false),
+    setting("optimizer", "learning_rate", 1e-12, 1.0, true),
     setting("optimizer", "decay", 1e-6, 1.0, true),
     setting("optimizer", "weight_decay", 0.0, 1e3, false),
     setting("optimizer", "grad_clip_norm", 1e-6, 1e6, false),

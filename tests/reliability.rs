@@ -237,6 +237,14 @@ fn an_output_that_is_not_a_file_is_refused_and_a_link_is_written_through() {
             ],
         );
     }
+    // The link itself as the output, spelt with a trailing slash (which follows the link).
+    let as_folder = format!("{}/", dangling.to_str().expect("UTF-8"));
+    for args in [
+        vec!["scenarios", "generate", "--out", &as_folder],
+        average_into(&as_folder),
+    ] {
+        assert_refused(&args, &["--out", "link to nothing"]);
+    }
     let target = dir.path().join("real.xodr");
     std::fs::write(&target, "old").expect("write");
     let link = dir.path().join("link.xodr");
@@ -761,6 +769,50 @@ fn nothing_else_writes_into_a_training_run() {
         1,
         "nothing was created in the run"
     );
+    // Nor does any other command's single file, over a file of the run or beside them.
+    let inside = |name: &str| run.join(name).to_str().expect("UTF-8").to_string();
+    for args in [
+        vec![
+            "recordings",
+            "generate",
+            "--effect",
+            "none",
+            "--tracks",
+            "3",
+            "--out",
+            &inside("curves.csv"),
+        ],
+        vec![
+            "map",
+            "export",
+            "--procedural",
+            "straight",
+            "--out",
+            &inside("config.toml"),
+        ],
+        vec![
+            "map",
+            "render",
+            "--procedural",
+            "straight",
+            "--out",
+            &inside("checkpoints/iter-000001/road.png"),
+        ],
+        vec![
+            "curate",
+            "--checkpoint",
+            "models/il_main",
+            "--out",
+            &inside("policy.bpk"),
+        ],
+    ] {
+        assert_refused(&args, &["lies inside", "result set"]);
+    }
+    assert_eq!(
+        walk(&run),
+        [run.join("checkpoints/latest")],
+        "the run is as it was"
+    );
 }
 
 #[test]
@@ -1161,6 +1213,12 @@ fn a_scenario_folder_is_checked_as_a_set() {
         std::fs::write(root.join("eval").join(name), bytes).expect("write");
         eval_refuses(&root, &[name, expected]);
     }
+    // An evaluation scenario moved into the training folder: the set would be scored short.
+    let root = dir.path().join("moved-out");
+    copy_folder(&good, &root);
+    let moved = root.join("train").join(original_name);
+    std::fs::rename(root.join("eval").join(original_name), &moved).expect("move");
+    eval_refuses(&root, &[original_name, "train set's folder"]);
 }
 
 /// A run resumed with its scenario folder spelt another way (`./S/` for `S`) is the same run.

@@ -50,14 +50,21 @@ pub fn write_averaged_policy(
         .collect::<Result<Vec<_>>>()?;
     let first = &policies[0];
     for other in &policies[1..] {
-        if other.config.model != first.config.model || other.method != first.method {
+        let differing = differing_run_fields(first, other)?;
+        if !differing.is_empty() || other.method != first.method {
             return Err(Error::InvalidArgument(format!(
-                "{} ({}) and {} ({}) differ in model config or method; average checkpoints \
-                 of one run",
+                "{} ({}) and {} ({}) are not checkpoints of one run (their run files differ in \
+                 {}); weights of separate runs (another seed, another recipe) share no basin, \
+                 and their mean is no policy",
                 first.path.display(),
                 first.method,
                 other.path.display(),
-                other.method
+                other.method,
+                if differing.is_empty() {
+                    "method".to_string()
+                } else {
+                    differing.join(", ")
+                }
             )));
         }
     }
@@ -117,4 +124,95 @@ fn config_for(policy: &TrainedPolicy) -> Result<String> {
         toml::Value::String(dynamics.display().to_string()),
     );
     toml::to_string(&table).map_err(|e| Error::invalid(&source, "config", format!("{e}")))
+}
+
+/// The fields in which the run files of two policies differ; a dynamics file counts by its
+/// contents (each run names it relative to its own folder).
+fn differing_run_fields(a: &TrainedPolicy, b: &TrainedPolicy) -> Result<Vec<String>> {
+    let contents = |p: &TrainedPolicy| -> Result<Option<Vec<u8>>> {
+        p.config
+            .dynamics
+            .as_ref()
+            .map(|d| crate::io::read_bytes(d, crate::io::Format::Settings))
+            .transpose()
+    };
+    let without_dynamics = |p: &TrainedPolicy| {
+        let mut config = p.config.clone();
+        config.dynamics = None;
+        config
+    };
+    let mut differing = differing_fields(&without_dynamics(a), &without_dynamics(b));
+    if contents(a)? != contents(b)? {
+        differing.push("dynamics".into());
+    }
+    Ok(differing)
+}
+
+/// The dotted names of the fields whose values differ between two run files.
+fn differing_fields<T: Serialize>(a: &T, b: &T) -> Vec<String> {
+    fn walk(prefix: &str, a: &serde_json::Value, b: &serde_json::Value, out: &mut Vec<String>) {
+        use serde_json::Value::Object;
+        match (a, b) {
+            (Object(x), Object(y)) => {
+                let keys: std::collections::BTreeSet<&String> = x.keys().chain(y.keys()).collect();
+                for key in keys {
+                    let null = serde_json::Value::Null;
+                    let name = if prefix.is_empty() {
+                        key.clone()
+                    } else {
+                        format!("{prefix}.{key}")
+                    };
+                    walk(
+                        &name,
+                        x.get(key).unwrap_or(&null),
+                        y.get(key).unwrap_or(&null),
+                        out,
+                    );
+                }
+            }
+            _ if a != b => out.push(prefix.to_string()),
+            _ => {}
+        }
+    }
+    let (Ok(a), Ok(b)) = (serde_json::to_value(a), serde_json::to_value(b)) else {
+        return vec!["(unreadable)".into()];
+    };
+    let mut out = Vec::new();
+    walk("", &a, &b, &mut out);
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn differing_fields_are_named_by_their_dotted_path() {
+        #[derive(Serialize)]
+        struct Inner {
+            rate: f64,
+            epochs: usize,
+        }
+        #[derive(Serialize)]
+        struct Run {
+            seed: u64,
+            optimizer: Inner,
+        }
+        let a = Run {
+            seed: 1,
+            optimizer: Inner {
+                rate: 1e-4,
+                epochs: 2,
+            },
+        };
+        let b = Run {
+            seed: 2,
+            optimizer: Inner {
+                rate: 1e-4,
+                epochs: 3,
+            },
+        };
+        assert_eq!(differing_fields(&a, &b), ["optimizer.epochs", "seed"]);
+        assert!(differing_fields(&a, &a).is_empty());
+    }
 }

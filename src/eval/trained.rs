@@ -29,12 +29,12 @@ pub struct TrainedPolicy {
 
 /// The policy file and the run config for `path` (a run folder, a checkpoint folder inside
 /// one, or a `policy.bpk` file). A run folder without a finished policy gives its newest
-/// checkpoint's.
+/// checkpoint's; one whose `policy.bpk` is there but no file (a FIFO, a folder) is refused.
 fn locate(path: &Path) -> Result<(PathBuf, PathBuf)> {
     let (dir, policy) = if path.is_file() {
         let dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
         (dir, path.to_path_buf())
-    } else if !path.join(POLICY).is_file()
+    } else if path.join(POLICY).symlink_metadata().is_err()
         && let Some(newest) = crate::train::checkpoint::latest(path)?
     {
         (newest.clone(), newest.join(POLICY))

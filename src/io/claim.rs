@@ -43,6 +43,7 @@ pub fn claim_output_file(path: &Path, flag: &str, inputs: &Inputs) -> Result<Out
     refuse_overlap(path, flag, inputs)?;
     let target = resolved(path);
     refuse_inside_a_claim(&target, path, flag)?;
+    refuse_inside_a_result_set(&target, path, flag)?;
     lock(&target, path, flag)
 }
 
@@ -80,33 +81,115 @@ fn refuse_inside_a_claim(target: &Path, shown: &Path, flag: &str) -> Result<()> 
         let Some(parent) = folder.parent() else {
             break;
         };
-        let lock_path = parent.join(lock_name(folder));
-        if held_here().contains(&lock_path) {
-            continue;
-        }
         // Only a lock file someone holds counts: a killed writer's is free.
-        let Ok(file) = File::open(&lock_path) else {
-            continue;
-        };
-        match file.try_lock_shared() {
-            Ok(()) => {
-                let _ = file.unlock();
-            }
-            Err(std::fs::TryLockError::WouldBlock) => {
-                let holder = std::fs::read_to_string(&lock_path).unwrap_or_default();
-                return Err(Error::InvalidArgument(format!(
-                    "{flag} {} lies inside {}, which another rtr process is writing ({}); it \
-                     replaces that folder whole when it ends: wait for it or choose another \
-                     {flag}",
-                    shown.display(),
-                    folder.display(),
-                    holder.trim()
-                )));
-            }
-            Err(std::fs::TryLockError::Error(_)) => {}
+        if let Some(holder) = live_holder(&parent.join(lock_name(folder))) {
+            return Err(Error::InvalidArgument(format!(
+                "{flag} {} lies inside {}, which another rtr process is writing ({holder}); it \
+                 replaces that folder whole when it ends: wait for it or choose another {flag}",
+                shown.display(),
+                folder.display(),
+            )));
         }
     }
     Ok(())
+}
+
+/// Whether `dir` holds the result set of an rtr command: a record of its files
+/// ([`super::staged::OWN_FILES`]), a training run (`checkpoints/latest`) or a model
+/// (`policy.bpk`).
+fn is_result_set(dir: &Path) -> bool {
+    dir.join(super::staged::OWN_FILES).is_file()
+        || dir.join("checkpoints").join("latest").exists()
+        || dir.join("policy.bpk").exists()
+}
+
+/// Refuses `target` inside another command's result set (a training run, a model, an
+/// evaluation): that command rewrites or reads its folder as a whole, so a file put there is
+/// lost at its next run or breaks it (a report written over a run's `latest`). Result sets
+/// this process itself claimed (a sweep's folder around its points) are its own.
+fn refuse_inside_a_result_set(target: &Path, shown: &Path, flag: &str) -> Result<()> {
+    for folder in target.ancestors().skip(1) {
+        let Some(parent) = folder.parent() else {
+            break;
+        };
+        if held_here().contains(&parent.join(lock_name(folder))) || !is_result_set(folder) {
+            continue;
+        }
+        return Err(Error::InvalidArgument(format!(
+            "{flag} {} lies inside {}, the result set of another rtr command (a training run, \
+             a model or an evaluation); writing there would change or break it: choose another \
+             {flag}",
+            shown.display(),
+            folder.display()
+        )));
+    }
+    Ok(())
+}
+
+/// Refuses the folder `target` when another rtr process is writing somewhere inside it:
+/// publishing a result set replaces the folder whole, and that process's files would be
+/// pulled from under it.
+fn refuse_holding_a_claim(target: &Path, shown: &Path, flag: &str) -> Result<()> {
+    // Deep enough for any rtr layout (a sweep's point's checkpoints), bounded for a --out
+    // that names a large tree.
+    const MAX_DEPTH: usize = 8;
+    const MAX_ENTRIES: usize = 200_000;
+    let mut pending = vec![(target.to_path_buf(), 0usize)];
+    let mut seen = 0usize;
+    while let Some((dir, depth)) = pending.pop() {
+        let Ok(entries) = std::fs::read_dir(&dir) else {
+            continue;
+        };
+        for entry in entries.flatten() {
+            seen += 1;
+            if seen > MAX_ENTRIES {
+                return Ok(());
+            }
+            let path = entry.path();
+            let is_dir = entry.file_type().is_ok_and(|t| t.is_dir());
+            if is_dir && depth < MAX_DEPTH {
+                pending.push((path, depth + 1));
+            } else if !is_dir
+                && is_lock_file(&path)
+                && let Some(holder) = live_holder(&path)
+            {
+                return Err(Error::InvalidArgument(format!(
+                    "{flag} {} holds an output that another rtr process is writing (in {}: \
+                     {holder}); publishing there would replace that folder under it: wait for \
+                     it or choose another {flag}",
+                    shown.display(),
+                    path.parent().unwrap_or(&path).display(),
+                )));
+            }
+        }
+    }
+    Ok(())
+}
+
+fn is_lock_file(path: &Path) -> bool {
+    path.file_name()
+        .is_some_and(|n| n.to_string_lossy().starts_with(".rtr-lock-"))
+}
+
+/// The holder recorded in the lock file at `path` when another process holds it now.
+fn live_holder(path: &Path) -> Option<String> {
+    if held_here().iter().any(|p| p == path) {
+        return None;
+    }
+    let file = File::open(path).ok()?;
+    match file.try_lock_shared() {
+        Ok(()) => {
+            let _ = file.unlock();
+            None
+        }
+        Err(std::fs::TryLockError::WouldBlock) => Some(
+            std::fs::read_to_string(path)
+                .unwrap_or_default()
+                .trim()
+                .to_string(),
+        ),
+        Err(std::fs::TryLockError::Error(_)) => None,
+    }
 }
 
 /// Checks, before any work, that the folder `path` (given with `flag`) can be written, is
@@ -117,6 +200,8 @@ pub fn claim_output_folder(path: &Path, flag: &str, inputs: &Inputs) -> Result<O
     refuse_overlap(path, flag, inputs)?;
     let target = resolved(path);
     refuse_inside_a_claim(&target, path, flag)?;
+    refuse_inside_a_result_set(&target, path, flag)?;
+    refuse_holding_a_claim(&target, path, flag)?;
     let claim = lock(&target, path, flag)?;
     // Under the lock: what a killed writer of this folder left is nobody's.
     super::output::remove_stale_temporaries(folder_of(&target));
@@ -290,6 +375,53 @@ mod tests {
         let _report = claim_output_file(&file, "--report", &Inputs::new()).expect("a file");
         let err = claim_output_file(&file, "--report", &Inputs::new()).expect_err("twice");
         assert!(err.to_string().contains("another rtr process"), "{err}");
+    }
+
+    #[test]
+    fn an_output_inside_another_commands_result_set_is_refused() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let run = dir.path().join("run");
+        std::fs::create_dir_all(run.join("checkpoints/iter-000004")).expect("mkdir");
+        std::fs::write(run.join("checkpoints/latest"), "iter-000004").expect("write");
+        let model = dir.path().join("model");
+        std::fs::create_dir_all(&model).expect("mkdir");
+        std::fs::write(model.join("policy.bpk"), "weights").expect("write");
+        let eval = dir.path().join("eval");
+        std::fs::create_dir_all(eval.join("figures")).expect("mkdir");
+        std::fs::write(eval.join(".rtr-output"), "# rtr eval\ntable.md\n").expect("write");
+        for file in [
+            run.join("curves.csv"),
+            run.join("checkpoints/latest"),
+            run.join("checkpoints/iter-000004/x.png"),
+            model.join("policy.bpk"),
+            eval.join("figures/extra.png"),
+        ] {
+            let err = claim_output_file(&file, "--out", &Inputs::new()).expect_err("inside");
+            assert!(err.to_string().contains("result set"), "{err}");
+        }
+        let err = claim_output_folder(&run.join("checkpoints/mean"), "--out", &Inputs::new())
+            .expect_err("a folder inside");
+        assert!(err.to_string().contains("result set"), "{err}");
+        // The set itself (its own command's next run) and a sibling are fine.
+        let _own = claim_output_folder(&eval, "--out", &Inputs::new()).expect("the set itself");
+        let _sibling = claim_output_file(&dir.path().join("r.json"), "--report", &Inputs::new())
+            .expect("beside it");
+    }
+
+    #[test]
+    fn a_folder_holding_another_writers_output_is_refused() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let outer = dir.path().join("study");
+        std::fs::create_dir_all(outer.join("run")).expect("mkdir");
+        // Another process's claim on study/run: its lock file beside the run, held.
+        let lock_path = outer.join(lock_name(&outer.join("run")));
+        std::fs::write(&lock_path, "pid 4242: rtr train --out study/run").expect("write");
+        let other = File::open(&lock_path).expect("open");
+        other.lock().expect("lock");
+        let err = claim_output_folder(&outer, "--out", &Inputs::new()).expect_err("holds");
+        assert!(err.to_string().contains("pid 4242"), "{err}");
+        other.unlock().expect("unlock");
+        let _claim = claim_output_folder(&outer, "--out", &Inputs::new()).expect("free now");
     }
 
     #[test]

@@ -182,6 +182,13 @@ pub(super) fn kind_of(metadata: &std::fs::Metadata) -> &'static str {
 /// The whole of the regular file `path`, refused if larger than `format` allows.
 pub fn read_bytes(path: &Path, format: Format) -> Result<Vec<u8>> {
     let file = open_regular(path)?;
+    // A file larger than the cap is refused from its size, before any of it is read (a
+    // compressed one is capped again as it is decompressed).
+    if let Ok(meta) = file.metadata()
+        && meta.len() > format.limit()
+    {
+        return Err(read_error(path, too_large(format)));
+    }
     let mut bytes = Vec::new();
     capped(file, format)
         .read_to_end(&mut bytes)
@@ -221,18 +228,23 @@ impl<R: Read> Read for Capped<R> {
             .min(usize::try_from(self.left + 1).unwrap_or(usize::MAX));
         let n = self.inner.read(&mut buf[..want])?;
         if n as u64 > self.left {
-            return Err(std::io::Error::new(
-                std::io::ErrorKind::FileTooLarge,
-                format!(
-                    "more than {} MiB, the most {} may hold; is this the right file?",
-                    self.format.limit() / MIB,
-                    self.format.name()
-                ),
-            ));
+            return Err(too_large(self.format));
         }
         self.left -= n as u64;
         Ok(n)
     }
+}
+
+/// The error of a file or stream larger than `format` may be.
+fn too_large(format: Format) -> std::io::Error {
+    std::io::Error::new(
+        std::io::ErrorKind::FileTooLarge,
+        format!(
+            "more than {} MiB, the most {} may hold; is this the right file?",
+            format.limit() / MIB,
+            format.name()
+        ),
+    )
 }
 
 /// A read error as the library reports it: a file over its cap is invalid data (named), any

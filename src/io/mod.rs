@@ -46,6 +46,17 @@ pub fn parse_toml<T: serde::de::DeserializeOwned>(text: &str, source_name: &str)
         {
             let key = text[span].trim().trim_matches(['[', ']']);
             message = format!("`{key}` is defined twice; expected each key and table once");
+        } else if let Some(key) = key_on_line(text, line).filter(|_| in_a_table) {
+            // A value of the wrong type for a field of fixed names: list them.
+            if let Some(names) = variant_names::<T>(text, line, key)
+                && let Some(at) = message.find("expected ")
+            {
+                message.truncate(at);
+                message.push_str(&format!("{names}, as a quoted string"));
+            }
+            if !message.contains(&format!("`{key}`")) {
+                message = format!("`{key}`: {message}");
+            }
         }
         Error::Parse {
             source_name: source_name.to_string(),
@@ -54,6 +65,36 @@ pub fn parse_toml<T: serde::de::DeserializeOwned>(text: &str, source_name: &str)
             message,
         }
     })
+}
+
+/// The key of a `key = value` line (1-based `line`), if it is one.
+fn key_on_line(text: &str, line: usize) -> Option<&str> {
+    let (key, _) = text.lines().nth(line.checked_sub(1)?)?.split_once('=')?;
+    let key = key.trim();
+    let bare = |c: char| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.' | '"');
+    (!key.is_empty() && key.chars().all(bare)).then_some(key)
+}
+
+/// The names an enum field accepts (`expected ...`), as serde lists them for a name it does
+/// not know: the document is parsed again with the field's value replaced by such a name. For
+/// a value of the wrong type (`method = 5`) serde says only that it wanted a name.
+fn variant_names<T: serde::de::DeserializeOwned>(
+    text: &str,
+    line: usize,
+    key: &str,
+) -> Option<String> {
+    let probe = format!("{key} = \"?\"");
+    let rewritten: Vec<&str> = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| if i + 1 == line { probe.as_str() } else { l })
+        .collect();
+    let e = toml::from_str::<T>(&rewritten.join("\n")).err()?;
+    let message = e.message();
+    message.contains("unknown variant").then_some(())?;
+    // "expected `a` or `b`", "expected one of `a`, `b`, `c`".
+    let (_, names) = message.split_once("expected ")?;
+    Some(format!("expected {}", names.trim()))
 }
 
 /// A `[[name]]` header makes `name` a list of tables and `[name]` one table; written the
@@ -269,5 +310,11 @@ mod tests {
                 assert!(!message.contains(rust), "{text:?}: {message}");
             }
         }
+        // A field of fixed names given a number: the field is named and its names listed.
+        let err = parse_toml::<WithMethod>("method = \"x\"\n[run]\nbackend = 5\n", "run.toml")
+            .expect_err("a number for a name");
+        let message = err.to_string();
+        assert!(message.contains("`backend`"), "{message}");
+        assert!(message.contains("`ndarray` or `flex`"), "{message}");
     }
 }

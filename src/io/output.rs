@@ -200,6 +200,8 @@ pub(super) enum OutputKind {
 /// with a file created and removed at once). `flag` names the option in the error. Leaves the
 /// file system as it was, so a command refused here has written nothing.
 pub(super) fn check_output(path: &Path, kind: OutputKind, flag: &str) -> Result<()> {
+    // Without a trailing slash: `link/` would follow a link to nothing and see no link at all.
+    let path = &path.components().collect::<PathBuf>();
     let fail = |why: String| {
         Err(Error::InvalidArgument(format!(
             "{flag} {}: {why}",

@@ -1,6 +1,6 @@
 //! The shape of each road of a parsed OpenDRIVE document, checked before it becomes a map:
 //! no lane wider than the radius it bends around, no reference line crossing itself, no
-//! surface folding onto itself, no road lying on another. Each would give a map that loads
+//! surface folding onto itself, no road lying on another, in whole or in part. Each would give a map that loads
 //! and is wrong (lanes over lanes, two copies of one carriageway). The topology of the
 //! network (links, junctions, lane links) is [`super::topology_checks`].
 
@@ -18,6 +18,7 @@ pub(super) fn check(od: &OpenDrive) -> Option<Problem> {
         .or_else(|| reference_lines_do_not_cross(od))
         .or_else(|| surfaces_do_not_fold(od))
         .or_else(|| roads_are_not_repeated(od))
+        .or_else(|| carriageways_do_not_overlap(od))
 }
 
 /// The samples `s` of section `k` of `road` the geometric checks use (both ends included).
@@ -267,4 +268,155 @@ fn share_a_side(a: &Road, b: &Road, reversed: bool) -> bool {
     let ((ar, al), (br, bl)) = (sides(a), sides(b));
     let (br, bl) = if reversed { (bl, br) } else { (br, bl) };
     (ar && br) || (al && bl)
+}
+
+/// Metres at each end of a road where another road may lie on it: linked roads meet there.
+const END_MARGIN: f64 = 2.0;
+/// Metres over which a lane's centre may run on another road's surface before the two count
+/// as one carriageway over another (a few metres of a tight junction-free fork).
+const MAX_OVERLAP: f64 = 5.0;
+
+/// No driving lane of a road outside a junction runs on another such road's surface for more
+/// than [`MAX_OVERLAP`]: a road pasted over part of another, or beside it at less than a lane's
+/// width, gives lanes through lanes as surely as a road given twice. Lane centres are tested,
+/// so roads that only touch (a two-way road as two one-way roads, a ramp beside the main
+/// carriageway) pass; so do the first and last metres of each road, where linked roads meet.
+fn carriageways_do_not_overlap(od: &OpenDrive) -> Option<Problem> {
+    let open: Vec<&Road> = od.roads.iter().filter(|r| r.junction.is_none()).collect();
+    let surfaces = SurfaceGrid::new(&open);
+    for (b, road) in open.iter().enumerate() {
+        for k in 0..road.lane_sections.len() {
+            let mut runs: std::collections::HashMap<(i32, usize), (f64, f64)> = Default::default();
+            for s in section_samples(road, k) {
+                if s < END_MARGIN || s > road.length - END_MARGIN {
+                    continue;
+                }
+                let pose = eval_road(road, s);
+                let mut on: Vec<(i32, usize)> = Vec::new();
+                for_each_span(road, &road.lane_sections[k], s, |lane, span| {
+                    if lane.kind != super::opendrive::LaneType::Driving {
+                        return;
+                    }
+                    let centre = pose.offset(0.5 * (span.inner + span.outer));
+                    for a in surfaces.roads_under(centre).filter(|&a| a != b) {
+                        on.push((lane.id, a));
+                    }
+                });
+                runs.retain(|key, _| on.contains(key));
+                for key in on {
+                    let (start, _) = *runs.entry(key).or_insert((s, s));
+                    runs.insert(key, (start, s));
+                    if s - start > MAX_OVERLAP {
+                        let (lane, a) = key;
+                        return Some(overlap_problem(road, open[a], lane, start));
+                    }
+                }
+            }
+        }
+    }
+    None
+}
+
+fn overlap_problem(road: &Road, other: &Road, lane: i32, from: f64) -> Problem {
+    Problem {
+        place: Place::Road(road.id.clone()),
+        message: format!(
+            "road {}: the centre of its lane {lane} runs on road {}'s surface for more than \
+             {MAX_OVERLAP} m from s = {from:.1}: two carriageways over one another; expected \
+             roads that meet only at their ends or in a junction",
+            road.id, other.id
+        ),
+    }
+}
+
+/// The driving surfaces of roads as quadrilaterals between cross-sections every
+/// [`CHECK_SPACING`], bucketed on a grid.
+struct SurfaceGrid {
+    quads: Vec<(usize, [[f64; 2]; 4])>,
+    cells: std::collections::HashMap<(i64, i64), Vec<usize>>,
+}
+
+impl SurfaceGrid {
+    const CELL: f64 = 8.0;
+
+    fn new(roads: &[&Road]) -> Self {
+        let mut grid = Self {
+            quads: Vec::new(),
+            cells: Default::default(),
+        };
+        for (r, road) in roads.iter().enumerate() {
+            for k in 0..road.lane_sections.len() {
+                let cuts: Vec<[[f64; 2]; 2]> = section_samples(road, k)
+                    .map(|s| cross_section(road, s))
+                    .collect();
+                for pair in cuts.windows(2) {
+                    let ([r0, l0], [r1, l1]) = (pair[0], pair[1]);
+                    grid.add(r, [r0, r1, l1, l0]);
+                }
+            }
+        }
+        grid
+    }
+
+    fn cell(p: [f64; 2]) -> (i64, i64) {
+        (
+            (p[0] / Self::CELL).floor() as i64,
+            (p[1] / Self::CELL).floor() as i64,
+        )
+    }
+
+    fn add(&mut self, road: usize, quad: [[f64; 2]; 4]) {
+        let index = self.quads.len();
+        self.quads.push((road, quad));
+        let (lo, hi) = quad.iter().fold(
+            ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]),
+            |(lo, hi), p| {
+                (
+                    [lo[0].min(p[0]), lo[1].min(p[1])],
+                    [hi[0].max(p[0]), hi[1].max(p[1])],
+                )
+            },
+        );
+        let ((x0, y0), (x1, y1)) = (Self::cell(lo), Self::cell(hi));
+        if (x1 - x0) * (y1 - y0) > 10_000 {
+            return; // a degenerate quad (refused by the fold check before)
+        }
+        for x in x0..=x1 {
+            for y in y0..=y1 {
+                self.cells.entry((x, y)).or_default().push(index);
+            }
+        }
+    }
+
+    /// The roads whose surface holds `p`.
+    fn roads_under(&self, p: [f64; 2]) -> impl Iterator<Item = usize> + '_ {
+        let mut roads: Vec<usize> = self
+            .cells
+            .get(&Self::cell(p))
+            .into_iter()
+            .flatten()
+            .map(|&q| &self.quads[q])
+            .filter(|(_, quad)| inside(p, quad))
+            .map(|&(road, _)| road)
+            .collect();
+        roads.sort_unstable();
+        roads.dedup();
+        roads.into_iter()
+    }
+}
+
+/// Whether `p` lies inside the polygon `corners` (even-odd rule).
+fn inside(p: [f64; 2], corners: &[[f64; 2]]) -> bool {
+    let mut odd = false;
+    let mut j = corners.len() - 1;
+    for i in 0..corners.len() {
+        let (a, b) = (corners[i], corners[j]);
+        if (a[1] > p[1]) != (b[1] > p[1])
+            && p[0] < a[0] + (p[1] - a[1]) * (b[0] - a[0]) / (b[1] - a[1])
+        {
+            odd = !odd;
+        }
+        j = i;
+    }
+    odd
 }

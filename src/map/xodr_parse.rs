@@ -872,8 +872,26 @@ impl Ctx<'_, '_> {
             predecessors: Vec::new(),
             successors: Vec::new(),
         };
+        let mut last_offset: std::collections::HashMap<&str, f64> = Default::default();
         for child in node.children().filter(Node::is_element) {
-            match child.tag_name().name() {
+            let tag = child.tag_name().name();
+            if matches!(tag, "width" | "roadMark" | "speed") {
+                let offset = self.req_f64(child, "sOffset")?;
+                if let Some(previous) = last_offset.insert(tag, offset)
+                    && offset <= previous
+                {
+                    // Each record holds from its sOffset to the next one's: out of order, the
+                    // lane would take one record's value everywhere.
+                    return Err(self.err(
+                        child,
+                        format!(
+                            "lane {id}: <{tag}> at sOffset = {offset} follows one at sOffset = \
+                             {previous}; expected <{tag}> records in increasing sOffset"
+                        ),
+                    ));
+                }
+            }
+            match tag {
                 "width" => lane.widths.push(self.poly3(child, "sOffset")?),
                 "border" => {
                     return Err(self.err(

@@ -389,6 +389,45 @@ fn lane_sections_out_of_order_are_refused() {
 }
 
 #[test]
+fn lane_records_out_of_order_are_refused() {
+    let road = |records: &str| {
+        document(&format!(
+            r#"<road id="a" length="200" junction="-1">
+ <planView>
+  <geometry s="0" x="0" y="0" hdg="0" length="200"><line/></geometry>
+ </planView>
+ <lanes><laneSection s="0"><center><lane id="0" type="none"/></center><right>
+  <lane id="-1" type="driving">
+{records}
+  </lane>
+ </right></laneSection></lanes>
+</road>
+"#
+        ))
+    };
+    let width =
+        |s: u32, a: f64| format!("<width sOffset=\"{s}\" a=\"{a}\" b=\"0\" c=\"0\" d=\"0\"/>\n");
+    let mark = |s: u32| format!("<roadMark sOffset=\"{s}\" type=\"solid\"/>\n");
+    let speed = |s: u32| format!("<speed sOffset=\"{s}\" max=\"30\"/>\n");
+    parse_xodr(&road(&(width(0, 3.0) + &width(50, 3.75))), "t").expect("in order");
+    for (records, tag) in [
+        (width(50, 3.75) + &width(0, 3.0), "width"),
+        (width(0, 3.75) + &width(0, 3.0), "width"),
+        (width(0, 3.5) + &mark(80) + &mark(10), "roadMark"),
+        (width(0, 3.5) + &speed(20) + &speed(20), "speed"),
+    ] {
+        let text = road(&records);
+        let (line, message) = parse_err(&text);
+        assert!(message.contains(&format!("<{tag}>")), "{message}");
+        assert!(message.contains("increasing sOffset"), "{message}");
+        assert!(
+            line > line_of(&text, "<lane id=\"-1\""),
+            "{records}: line {line}"
+        );
+    }
+}
+
+#[test]
 fn a_reference_line_with_a_jump_or_a_kink_is_refused() {
     let road = |x2: f64, hdg2: f64| {
         document(&format!(

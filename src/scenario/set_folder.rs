@@ -4,7 +4,8 @@
 //! a hidden `.json` (the leftover of an interrupted write), a scenario labelled with another
 //! set than its folder, the same scenario twice under two names (also with its states nudged:
 //! the same draw of the same family), a scenario of another set (a training scenario copied
-//! into `eval/`), and a scenario whose recorded reference run is not what simulating it gives.
+//! into `eval/`), a scenario of the set moved into another set's folder, and a scenario whose
+//! recorded reference run is not what simulating it gives.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -18,6 +19,15 @@ use crate::error::{Error, Result};
 /// The scenarios of `set` in `root/<set>/`, in file-name order, checked as a set.
 pub fn load_scenario_set(root: &Path, set: ScenarioSet) -> Result<Vec<ConcreteScenario>> {
     let dir = root.join(set.name());
+    if !dir.is_dir() && root.is_dir() {
+        return Err(Error::InvalidArgument(format!(
+            "{}: no `{}` folder, so no {} set (a scenario folder holds train/, eval/ and ood/; \
+             `rtr scenarios generate` leaves out a set drawn with no scenarios)",
+            root.display(),
+            set.name(),
+            set.name()
+        )));
+    }
     let paths = scenario_files(&dir)?;
     let mut seen: BTreeMap<String, PathBuf> = BTreeMap::new();
     let mut scenarios = Vec::with_capacity(paths.len());
@@ -125,7 +135,8 @@ fn duplicate(path: &Path, first: &Path) -> Error {
 }
 
 /// Refuses a scenario of `seen` ([`identities`] -> file) that is also in another set's folder
-/// under `root`. Files there that do not load are left to that set's own loading.
+/// under `root`, and a scenario of `set` that lies in another set's folder. Files there that
+/// do not load are left to that set's own loading.
 fn refuse_other_sets(
     root: &Path,
     set: ScenarioSet,
@@ -140,6 +151,21 @@ fn refuse_other_sets(
             let Ok(scenario) = ConcreteScenario::from_json_file(&path) else {
                 continue;
             };
+            if scenario.set == set {
+                // Moved out of this set's folder: the set would be scored without it.
+                return Err(Error::invalid(
+                    path.display().to_string(),
+                    "set",
+                    format!(
+                        "is `{}`, but the file lies in the {} set's folder; the {} set in {} \
+                         would be used without it. Move it back",
+                        set.name(),
+                        other.name(),
+                        set.name(),
+                        root.join(set.name()).display()
+                    ),
+                ));
+            }
             let ours = identities(&scenario)?
                 .into_iter()
                 .find_map(|key| seen.get(&key));

@@ -8,7 +8,7 @@
 //! a corrupted file is refused by name instead of evaluated or trained on.
 
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::{Component, Path, PathBuf};
 
 use burn::module::Module;
 use burn::optim::ModuleOptimizer;
@@ -161,11 +161,16 @@ impl burn::module::ModuleVisitor for NonFinite {
     }
 }
 
-/// Refuses a module (read from `path`) with a NaN or infinite parameter.
-fn check_finite<M: Module>(module: &M, path: &Path) -> Result<()> {
+/// The first parameter of `module` holding NaN or infinity: its path and how many values.
+pub(crate) fn non_finite_parameter<M: Module>(module: &M) -> Option<(String, usize)> {
     let mut check = NonFinite::default();
     module.visit(&mut check);
-    match check.found {
+    check.found
+}
+
+/// Refuses a module (read from `path`) with a NaN or infinite parameter.
+fn check_finite<M: Module>(module: &M, path: &Path) -> Result<()> {
+    match non_finite_parameter(module) {
         Some((name, count)) => Err(Error::invalid(
             path.display().to_string(),
             format!("parameter `{name}`"),
@@ -237,7 +242,25 @@ pub fn latest(run_dir: &Path) -> Result<Option<PathBuf>> {
             "empty; expected the name of the newest checkpoint folder (iter-NNNNNN)",
         ));
     }
-    Ok(Some(run_dir.join("checkpoints").join(name.trim())))
+    let name = name.trim();
+    let named = run_dir.join("checkpoints").join(name);
+    let plain = Path::new(name).components().count() == 1
+        && matches!(
+            Path::new(name).components().next(),
+            Some(Component::Normal(_))
+        );
+    if !plain || !named.is_dir() {
+        return Err(Error::invalid(
+            pointer.display().to_string(),
+            "contents",
+            format!(
+                "names `{}`, which is not a checkpoint folder beside it; expected the name of \
+                 the newest checkpoint folder (iter-NNNNNN) there",
+                name.chars().take(80).collect::<String>()
+            ),
+        ));
+    }
+    Ok(Some(named))
 }
 
 /// The checkpoint a run in `run_dir` starts from: with `resume` the newest one, which must

@@ -699,10 +699,24 @@ impl TrainConfig {
             .and_then(|()| self.check_reference())
             .and_then(|()| self.check_init())
             .and_then(|()| self.check_budget())
+            .and_then(|()| self.check_paths())
             .map_err(|(field, message)| {
                 Error::invalid(source_name, format!("field `{field}`"), message)
             })?;
         self.model.validate(source_name)
+    }
+
+    /// Every path the run reads names something: `""` would resolve to the run file's own
+    /// folder or to nothing.
+    fn check_paths(&self) -> Check {
+        match self
+            .input_paths()
+            .into_iter()
+            .find(|(_, path)| path.as_os_str().is_empty())
+        {
+            Some((field, _)) => refuse(field, "is empty; expected a path"),
+            None => Ok(()),
+        }
     }
 
     /// The mixture: alpha, lambda and the recorded sources.
@@ -776,8 +790,10 @@ impl TrainConfig {
     fn check_optimizer(&self) -> Check {
         let positive = |x: f64| x.is_finite() && x > 0.0;
         let o = &self.optimizer;
-        if !positive(o.learning_rate) {
-            return refuse("optimizer.learning_rate", "expected a finite value > 0");
+        // Adam's step is about the learning rate per parameter: above 1 every step moves each
+        // weight by more than the weights' own scale, and training can only diverge.
+        if !(positive(o.learning_rate) && o.learning_rate <= 1.0) {
+            return refuse("optimizer.learning_rate", "expected a rate in (0, 1]");
         }
         if !(o.decay.is_finite() && o.decay > 0.0 && o.decay <= 1.0) {
             return refuse("optimizer.decay", "expected a factor in (0, 1]");

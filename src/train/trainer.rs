@@ -386,6 +386,10 @@ impl<'d> Trainer<'d> {
                     .is_multiple_of(self.config.run.checkpoint_every)
                 || stop_after == Some(done_here)
             {
+                self.refuse_non_finite_weights(
+                    self.state.iteration - 1,
+                    last_checkpoint.as_deref(),
+                )?;
                 last_checkpoint = Some(self.save()?);
             }
             progress.set_message(format!(
@@ -412,6 +416,24 @@ impl<'d> Trainer<'d> {
             checkpoint,
             last: self.curves.rows().last().cloned(),
         })
+    }
+
+    /// A step can turn weights non-finite while its loss and gradients were finite (a
+    /// learning rate far too large): such weights are never saved, and the run stops at the
+    /// last good checkpoint.
+    fn refuse_non_finite_weights(&self, i: usize, last_checkpoint: Option<&Path>) -> Result<()> {
+        let found = checkpoint::non_finite_parameter(&self.policy)
+            .map(|p| ("policy", p))
+            .or_else(|| checkpoint::non_finite_parameter(&self.value).map(|p| ("value", p)));
+        match found {
+            Some((network, (name, count))) => Err(self.diverged(
+                i,
+                &format!("{network} network's parameter `{name}` ({count} values)"),
+                f64::NAN,
+                last_checkpoint,
+            )),
+            None => Ok(()),
+        }
     }
 
     fn save(&self) -> Result<PathBuf> {

@@ -32,11 +32,16 @@ impl DataArgs {
         self.data.clone().unwrap_or_else(a9::default_dir)
     }
 
-    pub fn load(&self) -> Result<A9Dataset> {
+    /// The A9 folder read, checked to be a folder (`--data` named in the error).
+    pub fn checked_dir(&self) -> Result<PathBuf> {
         if let Some(dir) = &self.data {
             rtr::io::check_input_folder(dir, "--data", "the AUTOMATUM A9 folder")?;
         }
-        A9Dataset::load(&self.dir())
+        Ok(self.dir())
+    }
+
+    pub fn load(&self) -> Result<A9Dataset> {
+        A9Dataset::load(&self.checked_dir()?)
     }
 }
 

@@ -133,8 +133,7 @@ pub fn run(command: BenchCommand) -> Result<()> {
 /// The A9 map and the repetition count (at least 1, checked by its parser) of a simulator or
 /// model benchmark.
 fn bench_inputs(args: &BenchArgs) -> Result<(Arc<Map>, usize)> {
-    let dir = args.data.data.clone().unwrap_or_else(a9::default_dir);
-    let map = Arc::new(a9::load_map(&dir)?);
+    let map = Arc::new(a9::load_map(&args.data.checked_dir()?)?);
     Ok((map, args.repetitions))
 }
 
