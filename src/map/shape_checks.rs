@@ -1,7 +1,7 @@
 //! The shape of each road of a parsed OpenDRIVE document, checked before it becomes a map:
 //! no lane wider than the radius it bends around, no reference line crossing itself, no
-//! surface folding onto itself, no road lying on another, in whole or in part. Each would give a map that loads
-//! and is wrong (lanes over lanes, two copies of one carriageway). The topology of the
+//! surface folding onto itself, no road lying on another, in whole or in part. Each would give
+//! a map that loads and is wrong (lanes over lanes, two copies of one carriageway). The topology of the
 //! network (links, junctions, lane links) is [`super::topology_checks`].
 
 use super::lateral::{for_each_span, section_end};
@@ -286,7 +286,8 @@ fn carriageways_do_not_overlap(od: &OpenDrive) -> Option<Problem> {
     let surfaces = SurfaceGrid::new(&open);
     for (b, road) in open.iter().enumerate() {
         for k in 0..road.lane_sections.len() {
-            let mut runs: std::collections::HashMap<(i32, usize), (f64, f64)> = Default::default();
+            // Per (lane, other road): where the lane's centre went onto the other's surface.
+            let mut runs: std::collections::HashMap<(i32, usize), f64> = Default::default();
             for s in section_samples(road, k) {
                 if s < END_MARGIN || s > road.length - END_MARGIN {
                     continue;
@@ -304,11 +305,10 @@ fn carriageways_do_not_overlap(od: &OpenDrive) -> Option<Problem> {
                 });
                 runs.retain(|key, _| on.contains(key));
                 for key in on {
-                    let (start, _) = *runs.entry(key).or_insert((s, s));
-                    runs.insert(key, (start, s));
+                    let start = *runs.entry(key).or_insert(s);
                     if s - start > MAX_OVERLAP {
                         let (lane, a) = key;
-                        return Some(overlap_problem(road, open[a], lane, start));
+                        return Some(overlap_problem(road, b, open[a], a, lane, start));
                     }
                 }
             }
@@ -317,14 +317,33 @@ fn carriageways_do_not_overlap(od: &OpenDrive) -> Option<Problem> {
     None
 }
 
-fn overlap_problem(road: &Road, other: &Road, lane: i32, from: f64) -> Problem {
+/// The overlap of `road`'s lane with `other`, placed at whichever of the two comes later in
+/// the document (the one pasted over the other).
+fn overlap_problem(
+    road: &Road,
+    road_index: usize,
+    other: &Road,
+    other_index: usize,
+    lane: i32,
+    from: f64,
+) -> Problem {
+    let later = if road_index > other_index {
+        road
+    } else {
+        other
+    };
+    let earlier = if road_index > other_index {
+        other
+    } else {
+        road
+    };
     Problem {
-        place: Place::Road(road.id.clone()),
+        place: Place::Road(later.id.clone()),
         message: format!(
-            "road {}: the centre of its lane {lane} runs on road {}'s surface for more than \
-             {MAX_OVERLAP} m from s = {from:.1}: two carriageways over one another; expected \
-             roads that meet only at their ends or in a junction",
-            road.id, other.id
+            "road {} overlaps road {}: the centre of road {}'s lane {lane} runs on road {}'s \
+             surface for more than {MAX_OVERLAP} m from s = {from:.1}: two carriageways over one \
+             another; expected roads that meet only at their ends or in a junction",
+            later.id, earlier.id, road.id, other.id
         ),
     }
 }

@@ -587,6 +587,33 @@ fn a_road_given_twice_under_two_ids_is_refused() {
     assert_eq!(line, line_of(&text, "<road id=\"b\""));
 }
 
+/// A road over part of another, or beside it closer than its lanes are wide, puts lanes
+/// through lanes; roads that only touch, side by side or end to end, do not.
+#[test]
+fn a_road_over_part_of_another_is_refused() {
+    let shifted = |road: String, y: f64| road.replace(r#"y="0""#, &format!(r#"y="{y}""#));
+    for other in [
+        straight("b", 50.0, 100.0, "", ""),
+        shifted(straight("b", 0.0, 100.0, "", ""), -1.0),
+        shifted(straight("b", 0.0, 100.0, "", ""), -0.2),
+    ] {
+        let text = document(&(straight("a", 0.0, 100.0, "", "") + &other));
+        let (line, message) = parse_err(&text);
+        assert!(message.contains("road b overlaps road a"), "{message}");
+        assert_eq!(line, line_of(&text, "<road id=\"b\""));
+    }
+    for beside in [
+        shifted(straight("b", 0.0, 100.0, "", ""), -7.0),
+        straight("b", 100.0, 100.0, "", ""),
+    ] {
+        parse_xodr(
+            &document(&(straight("a", 0.0, 100.0, "", "") + &beside)),
+            "t",
+        )
+        .expect("roads that only touch");
+    }
+}
+
 /// A spiral winding inwards never crosses its own reference line, but with loops nested closer
 /// than the road is wide its lanes lie over each other.
 #[test]
