@@ -75,6 +75,19 @@ fn shown_path(path: &std::path::Path) -> String {
 }
 
 impl Error {
+    /// This error, said of the input path a run file's `field` names (`init.policy`), so the
+    /// user knows which line of the run file to change.
+    pub fn in_field(self, field: &str) -> Self {
+        Error::InvalidData {
+            source_name: "run file".into(),
+            place: format!("field `{field}`"),
+            message: match self {
+                Error::InvalidArgument(message) => message,
+                other => other.to_string(),
+            },
+        }
+    }
+
     /// Wraps an I/O error with the path it happened on.
     pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
         Error::Io {

@@ -355,6 +355,32 @@ fn model_info_counts_parameters_and_rejects_bad_configs() {
     ]);
     let err = String::from_utf8_lossy(&bad.stderr);
     assert!(!bad.status.success() && err.contains("line 1"), "{err}");
+    // A run file gives its [model] table; a mistake in it is found at its line.
+    let run = rtr(&[
+        "model",
+        "info",
+        "--config",
+        "experiments/main/rtr.toml",
+        "--json",
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&run.stdout).expect("JSON");
+    assert_eq!(report["config"]["hidden"], 64);
+    std::fs::write(
+        &path,
+        "method = \"IL\"\n[model]\nhidden = 32.5\n[imitation]\nagent_dropout = 0.5\n",
+    )
+    .expect("write");
+    let bad = rtr(&["model", "info", "--config", path.to_str().expect("utf-8")]);
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(
+        !bad.status.success() && err.contains("line 3") && err.contains("hidden"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -390,12 +416,12 @@ fn train_names_the_bad_run_file_and_the_missing_reference() {
 }
 
 #[test]
-fn sim2real_writes_the_documented_report_and_plots() {
+fn sim2real_writes_the_documented_report_dynamics_and_plots_as_one_set() {
     let dir = tempfile::tempdir().expect("temp dir");
     let csv = dir.path().join("rec.csv");
-    let report = dir.path().join("report.json");
-    let plots = dir.path().join("plots");
-    let dynamics = dir.path().join("dynamics.toml");
+    let results = dir.path().join("results");
+    let report = results.join("report.json");
+    let dynamics = results.join("dynamics.toml");
     let path = |p: &std::path::Path| p.to_str().expect("utf-8 path").to_string();
     let out = rtr(&[
         "recordings",
@@ -416,12 +442,8 @@ fn sim2real_writes_the_documented_report_and_plots() {
         "sim2real",
         "--recordings",
         &path(&csv),
-        "--report",
-        &path(&report),
-        "--plots",
-        &path(&plots),
-        "--save-dynamics",
-        &path(&dynamics),
+        "--out",
+        &path(&results),
         "--iterations",
         "40",
     ]);
@@ -445,8 +467,8 @@ fn sim2real_writes_the_documented_report_and_plots() {
     for key in ["params", "heldout_pos_rmse_m", "improvement_pct"] {
         assert!(!findings[0][key].is_null(), "{key} missing");
     }
-    for plot in ["regimes.svg", "tracks.svg"] {
-        let svg = std::fs::read_to_string(plots.join(plot)).expect("plot written");
+    for plot in ["regimes.svg", "excess.svg", "hypotheses.svg", "tracks.svg"] {
+        let svg = std::fs::read_to_string(results.join(plot)).expect("plot written");
         assert!(svg.contains("<svg"));
     }
     assert!(
@@ -454,6 +476,12 @@ fn sim2real_writes_the_documented_report_and_plots() {
             .expect("dynamics")
             .contains("accel_lag")
     );
+    // The record of the set lists every file written, so the next run replaces all of them.
+    let record = std::fs::read_to_string(results.join(".rtr-output")).expect("record");
+    assert!(record.starts_with("# rtr sim2real"), "{record}");
+    for file in ["report.json", "dynamics.toml", "tracks.svg"] {
+        assert!(record.lines().any(|l| l == file), "{record}");
+    }
 }
 
 #[test]
@@ -469,13 +497,13 @@ fn sim2real_names_the_line_of_a_bad_recording() {
         "sim2real",
         "--recordings",
         csv.to_str().expect("utf-8"),
-        "--report",
-        dir.path().join("r.json").to_str().expect("utf-8"),
+        "--out",
+        dir.path().join("r").to_str().expect("utf-8"),
     ]);
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("line 3") && err.contains("heading"), "{err}");
-    assert!(!dir.path().join("r.json").exists());
+    assert!(!dir.path().join("r").exists());
 }
 
 #[test]
@@ -653,14 +681,7 @@ fn counts_out_of_range_are_refused_naming_the_flag() {
         ),
         (
             "--iterations",
-            &[
-                "sim2real",
-                "--a9",
-                "--report",
-                "r.json",
-                "--iterations",
-                "0",
-            ],
+            &["sim2real", "--a9", "--out", "unused", "--iterations", "0"],
         ),
         (
             "--resamples",
@@ -687,14 +708,7 @@ fn counts_out_of_range_are_refused_naming_the_flag() {
         );
     }
     assert!(!csv.exists(), "nothing written on error");
-    let out = rtr(&[
-        "sim2real",
-        "--a9",
-        "--report",
-        "r.json",
-        "--horizon",
-        "0.05",
-    ]);
+    let out = rtr(&["sim2real", "--a9", "--out", "unused", "--horizon", "0.05"]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
         !out.status.success() && err.contains("0.05 s horizon") && !err.contains("panicked"),
@@ -703,8 +717,8 @@ fn counts_out_of_range_are_refused_naming_the_flag() {
     let out = rtr(&[
         "sim2real",
         "--a9",
-        "--report",
-        "r.json",
+        "--out",
+        "unused",
         "--command-timing",
         "zoh",
     ]);
@@ -774,7 +788,7 @@ fn unwritable_outputs_are_refused_before_any_work() {
     std::fs::write(&file, "x").expect("write");
     let under_file = file.join("report.json");
     let folder = dir.path().to_str().unwrap();
-    let cases: [(&str, Vec<&str>); 10] = [
+    let cases: [(&str, Vec<&str>); 9] = [
         (
             "--out",
             vec!["eval", "--idm", "--out", file.to_str().unwrap()],
@@ -784,30 +798,12 @@ fn unwritable_outputs_are_refused_before_any_work() {
             vec!["curate", "--checkpoint", "models/il", "--out", folder],
         ),
         (
-            "--report",
-            vec!["sim2real", "--a9", "--report", under_file.to_str().unwrap()],
+            "--out",
+            vec!["sim2real", "--a9", "--out", under_file.to_str().unwrap()],
         ),
         (
-            "--plots",
-            vec![
-                "sim2real",
-                "--a9",
-                "--report",
-                "unused.json",
-                "--plots",
-                file.to_str().unwrap(),
-            ],
-        ),
-        (
-            "--save-dynamics",
-            vec![
-                "sim2real",
-                "--a9",
-                "--report",
-                "unused.json",
-                "--save-dynamics",
-                folder,
-            ],
+            "--out",
+            vec!["sim2real", "--a9", "--out", file.to_str().unwrap()],
         ),
         (
             "--out",
@@ -911,13 +907,7 @@ fn misplaced_inputs_name_their_flag_or_field() {
         ("--config", vec!["train", "--config", folder]),
         (
             "--recordings",
-            vec![
-                "sim2real",
-                "--recordings",
-                folder,
-                "--report",
-                "unused.json",
-            ],
+            vec!["sim2real", "--recordings", folder, "--out", "unused"],
         ),
         (
             "--scenarios",

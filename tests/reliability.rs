@@ -464,13 +464,13 @@ fn inputs_that_are_not_regular_files_are_refused_without_blocking() {
     let pipe = pipe.to_str().expect("UTF-8 path");
     let out = dir.path().join("out");
     let out = out.to_str().expect("UTF-8 path");
-    let report = dir.path().join("report.json");
-    let report = report.to_str().expect("UTF-8 path");
+    let results = dir.path().join("results");
+    let results = results.to_str().expect("UTF-8 path");
     for (args, flag) in [
         (vec!["train", "--config", pipe, "--out", out], "--config"),
         (vec!["map", "summary", "--xodr", pipe], "--xodr"),
         (
-            vec!["sim2real", "--recordings", pipe, "--report", report],
+            vec!["sim2real", "--recordings", pipe, "--out", results],
             "--recordings",
         ),
         (
@@ -490,13 +490,7 @@ fn inputs_that_are_not_regular_files_are_refused_without_blocking() {
             "--config",
         ),
         (
-            vec![
-                "sim2real",
-                "--recordings",
-                "/dev/urandom",
-                "--report",
-                report,
-            ],
+            vec!["sim2real", "--recordings", "/dev/urandom", "--out", results],
             "--recordings",
         ),
     ] {
@@ -626,10 +620,20 @@ fn an_output_that_is_or_holds_or_lies_in_an_input_is_refused() {
                 "sim2real".into(),
                 "--recordings".into(),
                 path(&recordings),
-                "--report".into(),
+                "--out".into(),
                 path(&recordings),
             ],
             "is the input --recordings",
+        ),
+        (
+            vec![
+                "sim2real".into(),
+                "--recordings".into(),
+                path(&recordings),
+                "--out".into(),
+                path(recordings.parent().expect("folder")),
+            ],
+            "holds the input --recordings",
         ),
         (
             vec![
@@ -648,7 +652,7 @@ fn an_output_that_is_or_holds_or_lies_in_an_input_is_refused() {
                 "sim2real".into(),
                 "--recordings".into(),
                 path(&recordings),
-                "--report".into(),
+                "--out".into(),
                 path(&dir.path().join("absent").join("..").join("tracks.csv")),
             ],
             "is the input --recordings",
@@ -1206,6 +1210,13 @@ fn a_scenario_folder_is_checked_as_a_set() {
             relabelled_bytes(&nudged(&first("train"), 0.001), "eval"),
             "of the train set",
         ),
+        // Files the loader would otherwise skip: the set would be scored without them.
+        (
+            "zz-upper.JSON",
+            std::fs::read(first("eval")).expect("read"),
+            "is not a scenario file",
+        ),
+        ("notes.txt", b"my notes".to_vec(), "is not a scenario file"),
     ];
     for (k, (name, bytes, expected)) in cases.into_iter().enumerate() {
         let root = dir.path().join(format!("case{k}"));
@@ -1213,6 +1224,10 @@ fn a_scenario_folder_is_checked_as_a_set() {
         std::fs::write(root.join("eval").join(name), bytes).expect("write");
         eval_refuses(&root, &[name, expected]);
     }
+    let root = dir.path().join("subfolder");
+    copy_folder(&good, &root);
+    std::fs::create_dir(root.join("eval").join("old")).expect("mkdir");
+    eval_refuses(&root, &["old", "folder", "is not a scenario file"]);
     // An evaluation scenario moved into the training folder: the set would be scored short.
     let root = dir.path().join("moved-out");
     copy_folder(&good, &root);

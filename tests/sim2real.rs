@@ -522,7 +522,7 @@ fn on_the_real_a9_recording_only_what_the_data_can_show_is_tried() {
 /// However short the fit, no finding and no final model is worse on held-out tracks than the
 /// declared nominal model. (With `--iterations 1` on these recordings, the one-step wheelbase
 /// refit ended at 0.489 m against the declared model's 0.204 m and was reported as the final
-/// model; elsewhere a finding 18 % worse was reported and `--save-dynamics` wrote it out.)
+/// model; elsewhere a finding 18 % worse was reported and `dynamics.toml` held it.)
 #[test]
 fn no_finding_makes_held_out_error_worse_whatever_the_iterations() {
     let recordings = generate(&GeneratorConfig::with_effect(None, 11), &device());

@@ -214,7 +214,7 @@ fn il_lowers_its_loss() {
 
 #[test]
 fn il_in_identified_dynamics_trains_and_the_physics_is_in_its_rollouts() {
-    // A dynamics file as `rtr sim2real --save-dynamics` writes it: the terms keep memory
+    // A dynamics file as `rtr sim2real` writes it: the terms keep memory
     // channels through the training rollout and its gradients.
     let dir = tempfile::tempdir().expect("temp dir");
     let path = dir.path().join("dynamics.toml");

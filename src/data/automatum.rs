@@ -136,7 +136,7 @@ pub fn load_recording(path: &Path, expected_sha256: Option<&str>) -> Result<Reco
             format!("{gzip_error} (truncated or not a gzip file?)"),
         ));
     }
-    let raw = parsed.map_err(|e| json_error(&source, &e))?;
+    let raw = parsed.map_err(|e| crate::io::json_error(&source, None, &e))?;
     // The gzip trailer (CRC, length) follows the JSON: read it so a damaged tail is caught.
     let mut rest = Vec::new();
     if let Err(e) = decoder.inner.read_to_end(&mut rest) {
@@ -159,23 +159,6 @@ impl<R: Read> Read for GzipErrors<R> {
                 self.error = Some(std::io::Error::new(e.kind(), e.to_string()));
             }
         })
-    }
-}
-
-fn json_error(source: &str, e: &serde_json::Error) -> Error {
-    let mut message = e.to_string();
-    // serde_json appends " at line L column C"; the position has its own fields.
-    if let Some(cut) = message.rfind(" at line ") {
-        message.truncate(cut);
-    }
-    if message.starts_with("expected value") {
-        message.push_str(" (a number, string, array or object; JSON has no NaN or Infinity)");
-    }
-    Error::Parse {
-        source_name: source.to_string(),
-        line: e.line(),
-        column: e.column(),
-        message,
     }
 }
 

@@ -39,12 +39,16 @@ impl Inputs {
 /// none of `inputs`, nor inside an input folder; then locks it against other rtr processes
 /// until the returned claim is dropped.
 pub fn claim_output_file(path: &Path, flag: &str, inputs: &Inputs) -> Result<OutputClaim> {
-    check_output(path, OutputKind::File, flag)?;
+    // An input first: that says more than "is a file" of the same path.
     refuse_overlap(path, flag, inputs)?;
+    check_output(path, OutputKind::File, flag)?;
     let target = resolved(path);
     refuse_inside_a_claim(&target, path, flag)?;
     refuse_inside_a_result_set(&target, path, flag)?;
-    lock(&target, path, flag)
+    let claim = lock(&target, path, flag)?;
+    // Under the lock: the temporary file a killed writer of this output left is nobody's.
+    super::output::remove_stale_temporaries(folder_of(&target));
+    Ok(claim)
 }
 
 /// An output claimed by [`claim_output_file`] or [`claim_output_folder`]; the claim lasts as
@@ -97,7 +101,7 @@ fn refuse_inside_a_claim(target: &Path, shown: &Path, flag: &str) -> Result<()> 
 /// Whether `dir` holds the result set of an rtr command: a record of its files
 /// ([`super::staged::OWN_FILES`]), a training run (`checkpoints/latest`) or a model
 /// (`policy.bpk`).
-fn is_result_set(dir: &Path) -> bool {
+pub(super) fn is_result_set(dir: &Path) -> bool {
     dir.join(super::staged::OWN_FILES).is_file()
         || dir.join("checkpoints").join("latest").exists()
         || dir.join("policy.bpk").exists()
@@ -168,7 +172,19 @@ fn refuse_holding_a_claim(target: &Path, shown: &Path, flag: &str) -> Result<()>
 
 fn is_lock_file(path: &Path) -> bool {
     path.file_name()
-        .is_some_and(|n| n.to_string_lossy().starts_with(".rtr-lock-"))
+        .is_some_and(|n| n.to_string_lossy().starts_with(LOCK_PREFIX))
+}
+
+/// The name prefix of the lock file beside a claimed output.
+const LOCK_PREFIX: &str = ".rtr-lock-";
+
+/// Whether `path` is rtr's own bookkeeping (a result set's record or an output's lock), which
+/// a reader of a folder's files skips.
+pub fn is_bookkeeping(path: &Path) -> bool {
+    is_lock_file(path)
+        || path
+            .file_name()
+            .is_some_and(|n| n == super::staged::OWN_FILES)
 }
 
 /// The holder recorded in the lock file at `path` when another process holds it now.
@@ -196,8 +212,9 @@ fn live_holder(path: &Path) -> Option<String> {
 /// none of `inputs`, holds none and lies in none; then locks it against other rtr processes
 /// until the returned claim is dropped. A second writer gets an error naming the first.
 pub fn claim_output_folder(path: &Path, flag: &str, inputs: &Inputs) -> Result<OutputClaim> {
-    check_output(path, OutputKind::Folder, flag)?;
+    // An input first: that says more than "is a file" of the same path.
     refuse_overlap(path, flag, inputs)?;
+    check_output(path, OutputKind::Folder, flag)?;
     let target = resolved(path);
     refuse_inside_a_claim(&target, path, flag)?;
     refuse_inside_a_result_set(&target, path, flag)?;
@@ -336,12 +353,12 @@ fn lock_name(target: &Path) -> String {
         })
         .unwrap_or_else(|| "out".into());
     if name.len() <= 100 {
-        return format!(".rtr-lock-{name}");
+        return format!("{LOCK_PREFIX}{name}");
     }
     use sha2::Digest;
     let digest = sha2::Sha256::digest(name.as_bytes());
     let hex: String = digest[..16].iter().map(|b| format!("{b:02x}")).collect();
-    format!(".rtr-lock-{hex}")
+    format!("{LOCK_PREFIX}{hex}")
 }
 
 #[cfg(test)]

@@ -8,15 +8,22 @@ mod claim;
 pub mod console;
 mod folder_swap;
 mod input;
+mod json_error;
+mod nested;
 mod output;
 mod process_files;
 mod staged;
+mod toml_field;
 
-pub use claim::{Inputs, OutputClaim, claim_output_file, claim_output_folder, resolved};
+pub use claim::{
+    Inputs, OutputClaim, claim_output_file, claim_output_folder, is_bookkeeping, resolved,
+};
 pub use input::{
     Capped, Format, capped, check_input_file, check_input_folder, check_input_path, list_folder,
     not_regular, open_regular, read_bytes, read_error, read_text, utf8_text,
 };
+pub use json_error::json_error;
+pub use nested::SWEEP_KIND;
 pub use output::{
     atomic_write, atomic_write_with, create_file, create_folder, is_temporary_name, remove_file,
     remove_folder, rename, write_new,
@@ -24,6 +31,7 @@ pub use output::{
 pub(crate) use output::{remove_stale_temporaries, temp_name};
 pub use process_files::{read_process_file, write_process_file};
 pub use staged::{StagedFolder, check_result_folder};
+pub use toml_field::field_error;
 
 use crate::error::{Error, Result};
 

@@ -74,6 +74,7 @@ impl StagedFolder {
         let staged = relative_files(&self.staging)?;
         if self.target.exists() {
             refuse_other_kind(&self.target, self.kind)?;
+            super::nested::refuse_nested_result_sets(&self.target, self.kind)?;
             check_mergeable(&self.staging, &self.target)?;
             let earlier = own_files(&self.target)?;
             refuse_foreign(&self.target, &staged, &earlier)?;
@@ -170,6 +171,7 @@ pub fn check_result_folder(target: &Path, kind: &str, names: &[&str]) -> Result<
         return Ok(());
     }
     refuse_other_kind(target, kind)?;
+    super::nested::refuse_nested_result_sets(target, kind)?;
     let earlier = own_files(target)?;
     let foreign: Vec<PathBuf> = names
         .iter()

@@ -6,6 +6,7 @@
 //! into the same [`Lane`]s and lane graph.
 
 mod bend;
+mod lane_continuity;
 mod lane_graph;
 mod lanelet;
 mod lanelet_surface;

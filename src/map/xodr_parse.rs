@@ -13,6 +13,7 @@
 //! Anything else (a 1e9 m lane, a negative width, a 1 mm arc) is nonsense that would silently
 //! distort or exhaust the map sampler.
 
+use super::lane_continuity;
 use super::reference_line::param_poly3_length;
 use super::topology_checks::Place;
 use roxmltree::{Document, Node};
@@ -470,26 +471,8 @@ impl Ctx<'_, '_> {
         self.check_plan_view(plan_view, &road)?;
         let lanes = element(node, "lanes")
             .ok_or_else(|| self.err(node, format!("road {} has no <lanes>", road.id)))?;
-        for o in elements(lanes, "laneOffset") {
-            let offset = self.poly3(o, "s")?;
-            let length = (road.length - offset.s).max(0.0);
-            if let Some(ds) =
-                cubic_extremes(&offset, length).find(|&ds| offset.value(ds).abs() > MAX_LANE_OFFSET)
-            {
-                return Err(self.err(
-                    o,
-                    format!(
-                        "road {}: <laneOffset> moves the lanes {} m from the reference line at \
-                         s={}; expected at most {MAX_LANE_OFFSET} m",
-                        road.id,
-                        offset.value(ds),
-                        offset.s + ds
-                    ),
-                ));
-            }
-            road.lane_offsets.push(offset);
-        }
-        sort_by_s(&mut road.lane_offsets, |o| o.s);
+        self.lane_offsets(lanes, &mut road)?;
+        let mut section_nodes = Vec::new();
         for sec in elements(lanes, "laneSection") {
             let section = self.lane_section(sec)?;
             // A section starting at or past the road's end has no lanes to sample: refused,
@@ -517,6 +500,7 @@ impl Ctx<'_, '_> {
                 ));
             }
             road.lane_sections.push(section);
+            section_nodes.push(sec);
         }
         if road.lane_sections.is_empty() {
             return Err(self.err(
@@ -526,7 +510,51 @@ impl Ctx<'_, '_> {
         }
         sort_by_s(&mut road.lane_sections, |s| s.s);
         self.check_widths(lanes, &road)?;
+        if let Some((k, message)) = lane_continuity::first_section_break(&road) {
+            return Err(self.err(section_nodes[k], message));
+        }
         Ok(road)
+    }
+
+    /// The road's `<laneOffset>` records, in `s` order, each within reach of the reference
+    /// line and starting where the previous one ended.
+    fn lane_offsets(&self, lanes: Node, road: &mut Road) -> Result<()> {
+        let mut offset_nodes = Vec::new();
+        for o in elements(lanes, "laneOffset") {
+            let offset = self.poly3(o, "s")?;
+            let length = (road.length - offset.s).max(0.0);
+            if let Some(ds) =
+                cubic_extremes(&offset, length).find(|&ds| offset.value(ds).abs() > MAX_LANE_OFFSET)
+            {
+                return Err(self.err(
+                    o,
+                    format!(
+                        "road {}: <laneOffset> moves the lanes {} m from the reference line at \
+                         s={}; expected at most {MAX_LANE_OFFSET} m",
+                        road.id,
+                        offset.value(ds),
+                        offset.s + ds
+                    ),
+                ));
+            }
+            offset_nodes.push((offset.s, o));
+            road.lane_offsets.push(offset);
+        }
+        sort_by_s(&mut road.lane_offsets, |o| o.s);
+        sort_by_s(&mut offset_nodes, |(s, _)| *s);
+        if let Some((k, step)) = lane_continuity::first_step(&road.lane_offsets, false) {
+            return Err(self.err(
+                offset_nodes[k].1,
+                format!(
+                    "road {}: <laneOffset> at s={} moves the lanes {step:.2} m sideways at once; \
+                     expected it to start within {} m of where the previous one ended",
+                    road.id,
+                    road.lane_offsets[k].s,
+                    lane_continuity::MAX_EDGE_STEP
+                ),
+            ));
+        }
+        Ok(())
     }
 
     fn road_length(&self, node: Node) -> Result<f64> {
@@ -873,6 +901,7 @@ impl Ctx<'_, '_> {
             successors: Vec::new(),
         };
         let mut last_offset: std::collections::HashMap<&str, f64> = Default::default();
+        let mut width_nodes = Vec::new();
         for child in node.children().filter(Node::is_element) {
             let tag = child.tag_name().name();
             if matches!(tag, "width" | "roadMark" | "speed") {
@@ -892,7 +921,10 @@ impl Ctx<'_, '_> {
                 }
             }
             match tag {
-                "width" => lane.widths.push(self.poly3(child, "sOffset")?),
+                "width" => {
+                    lane.widths.push(self.poly3(child, "sOffset")?);
+                    width_nodes.push(child);
+                }
                 "border" => {
                     return Err(self.err(
                         child,
@@ -924,6 +956,19 @@ impl Ctx<'_, '_> {
         }
         if id != 0 && lane.widths.is_empty() {
             return Err(self.err(node, format!("lane {id} has no <width> record")));
+        }
+        // In document order, which is sOffset order (checked above).
+        if let Some((k, step)) = lane_continuity::first_step(&lane.widths, true) {
+            return Err(self.err(
+                width_nodes[k],
+                format!(
+                    "lane {id}: <width> at sOffset = {} changes the lane's width by {step:.2} m \
+                     at once; expected it to start within {} m of the width the previous record \
+                     ended with",
+                    lane.widths[k].s,
+                    lane_continuity::MAX_EDGE_STEP
+                ),
+            ));
         }
         sort_by_s(&mut lane.widths, |w| w.s);
         sort_by_s(&mut lane.road_marks, |m| m.s_offset);

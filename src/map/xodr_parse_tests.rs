@@ -409,10 +409,10 @@ fn lane_records_out_of_order_are_refused() {
         |s: u32, a: f64| format!("<width sOffset=\"{s}\" a=\"{a}\" b=\"0\" c=\"0\" d=\"0\"/>\n");
     let mark = |s: u32| format!("<roadMark sOffset=\"{s}\" type=\"solid\"/>\n");
     let speed = |s: u32| format!("<speed sOffset=\"{s}\" max=\"30\"/>\n");
-    parse_xodr(&road(&(width(0, 3.0) + &width(50, 3.75))), "t").expect("in order");
+    parse_xodr(&road(&(width(0, 3.0) + &width(50, 3.25))), "t").expect("in order");
     for (records, tag) in [
-        (width(50, 3.75) + &width(0, 3.0), "width"),
-        (width(0, 3.75) + &width(0, 3.0), "width"),
+        (width(50, 3.25) + &width(0, 3.0), "width"),
+        (width(0, 3.25) + &width(0, 3.0), "width"),
         (width(0, 3.5) + &mark(80) + &mark(10), "roadMark"),
         (width(0, 3.5) + &speed(20) + &speed(20), "speed"),
     ] {
@@ -630,4 +630,77 @@ fn a_spiral_whose_loops_overlap_is_refused() {
     let one_loop = straight("a", 0.0, 140.0, "", "")
         .replace("<line/>", r#"<spiral curvStart="0.04" curvEnd="0.0414"/>"#);
     parse_xodr(&document(&one_loop), "t").expect("one loop");
+}
+
+/// A carriageway that steps sideways at once: a laneOffset record, a width record within a
+/// lane section, or a lane linked across sections starting away from where the last ended.
+#[test]
+fn lane_edges_that_jump_along_a_road_are_refused() {
+    let road = |offsets: &str, right: &str, second: &str| {
+        document(&format!(
+            r#"<road id="a" length="200" junction="-1">
+ <planView>
+  <geometry s="0" x="0" y="0" hdg="0" length="200"><line/></geometry>
+ </planView>
+ <lanes>
+{offsets}
+ <laneSection s="0"><center><lane id="0" type="none"/></center><right>
+{right}
+ </right></laneSection>
+{second}
+ </lanes>
+</road>
+"#
+        ))
+    };
+    let offset =
+        |s: u32, a: f64| format!("<laneOffset s=\"{s}\" a=\"{a}\" b=\"0\" c=\"0\" d=\"0\"/>\n");
+    let lane = |widths: &str, link: &str| {
+        format!("<lane id=\"-1\" type=\"driving\"><link>{link}</link>{widths}</lane>")
+    };
+    let width =
+        |s: u32, a: f64| format!("<width sOffset=\"{s}\" a=\"{a}\" b=\"0\" c=\"0\" d=\"0\"/>");
+    let section = |a: f64| {
+        format!(
+            r#"<laneSection s="100"><center><lane id="0" type="none"/></center><right>
+<lane id="-1" type="driving">{}</lane>
+</right></laneSection>"#,
+            width(0, a)
+        )
+    };
+    let linked = lane(&width(0, 3.5), r#"<successor id="-1"/>"#);
+    // Continuous versions of each: a small rounding step, an offset ramp, matching sections.
+    let ramp = "<laneOffset s=\"0\" a=\"0\" b=\"0.01\" c=\"0\" d=\"0\"/>\n".to_string()
+        + &offset(100, 1.2);
+    parse_xodr(
+        &road(&ramp, &lane(&(width(0, 3.5) + &width(50, 3.7)), ""), ""),
+        "t",
+    )
+    .expect("continuous edges");
+    parse_xodr(&road("", &linked, &section(3.6)), "t").expect("sections that meet");
+    for (text, needle, what) in [
+        (
+            road(
+                &(offset(0, 0.0) + &offset(100, 30.0)),
+                &lane(&width(0, 3.5), ""),
+                "",
+            ),
+            "<laneOffset s=\"100\"",
+            "30.00 m sideways",
+        ),
+        (
+            road("", &lane(&(width(0, 3.5) + &width(50, 9.0)), ""), ""),
+            "sOffset=\"50\"",
+            "by 5.50 m",
+        ),
+        (
+            road("", &linked, &section(2.0)),
+            "<laneSection s=\"100\"",
+            "successor lane -1",
+        ),
+    ] {
+        let (line, message) = parse_err(&text);
+        assert!(message.contains(what), "{message}");
+        assert_eq!(line, line_of(&text, needle), "{message}");
+    }
 }

@@ -55,6 +55,22 @@ pub fn load_families(dir: &Path) -> Result<Vec<LogicalScenario>> {
                 format!("family `{}` is defined twice", family.name),
             ));
         }
+        if let Some(twin) = families.iter().find(|f| f.draws_like(&family)) {
+            // A copy under another name doubles its family's share of the draws, and a
+            // held-out copy of a training family puts training scenarios into the OOD set.
+            return Err(Error::invalid(
+                path.display().to_string(),
+                "the family",
+                format!(
+                    "`{}` ({} set) draws the same scenarios as `{}` ({} set): only the name, \
+                     description or set differ; expected each family once",
+                    family.name,
+                    family.set.name(),
+                    twin.name,
+                    twin.set.name()
+                ),
+            ));
+        }
         families.push(family);
     }
     families.sort_by(|a, b| a.name.cmp(&b.name));
@@ -65,7 +81,10 @@ fn collect_toml(dir: &Path, out: &mut Vec<PathBuf>) -> Result<()> {
     for path in crate::io::list_folder(dir)? {
         if path.is_dir() {
             collect_toml(&path, out)?;
-        } else if path.extension().is_some_and(|e| e == "toml") {
+        } else if path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("toml"))
+        {
             out.push(path);
         }
     }
@@ -257,6 +276,30 @@ mod tests {
         assert_eq!(c.iter().sum::<usize>(), 333);
         assert!(c.iter().all(|&k| k == 13 || k == 14));
         assert_eq!(counts(12, 84), vec![7; 12]);
+    }
+
+    /// A family copied under another name, in the same set or as a held-out one, is refused
+    /// at the copy; the shipped families are all different.
+    #[test]
+    fn a_family_copied_under_another_name_is_refused() {
+        let shipped = load_families(&builtin_families()).expect("shipped families");
+        let source = builtin_families().join("train/brake_fast_lane.toml");
+        let text = std::fs::read_to_string(&source).expect("a shipped family");
+        for (name, set) in [("brake_fast_lane_twin", "train"), ("zz_held_out", "ood")] {
+            let dir = tempfile::tempdir().expect("temp dir");
+            std::fs::copy(&source, dir.path().join("brake_fast_lane.toml")).expect("copy");
+            let copy = text
+                .replace("name = \"brake_fast_lane\"", &format!("name = \"{name}\""))
+                .replace("set = \"train\"", &format!("set = \"{set}\""));
+            std::fs::write(dir.path().join(format!("{name}.toml")), copy).expect("write");
+            let err = load_families(dir.path()).expect_err("a copy").to_string();
+            assert!(
+                err.contains(&format!("{name}.toml"))
+                    && err.contains("draws the same scenarios as `brake_fast_lane`"),
+                "{err}"
+            );
+        }
+        assert!(shipped.len() > 30);
     }
 
     #[test]

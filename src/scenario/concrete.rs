@@ -298,12 +298,8 @@ impl ConcreteScenario {
 
     /// Parses and checks a scenario; errors name `source_name` and the line or field.
     pub fn from_json_str(text: &str, source_name: &str) -> Result<Self> {
-        let scenario: Self = serde_json::from_str(text).map_err(|e| Error::Parse {
-            source_name: source_name.to_string(),
-            line: e.line(),
-            column: e.column(),
-            message: e.to_string(),
-        })?;
+        let scenario: Self = serde_json::from_str(text)
+            .map_err(|e| crate::io::json_error(source_name, Some(text), &e))?;
         scenario.check_digest(source_name)?;
         scenario.check(source_name)?;
         Ok(scenario)

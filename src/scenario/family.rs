@@ -164,7 +164,27 @@ fn default_duration() -> f64 {
     10.0
 }
 
+impl FamilySet {
+    /// The name a family file gives it (`set = "train"`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Train => "train",
+            Self::Ood => "ood",
+        }
+    }
+}
+
 impl LogicalScenario {
+    /// Whether `other` draws the same concrete scenarios: everything but the name, the
+    /// description and the set agrees.
+    pub fn draws_like(&self, other: &Self) -> bool {
+        self.duration_s == other.duration_s
+            && self.map == other.map
+            && self.target == other.target
+            && self.background == other.background
+            && self.heroes == other.heroes
+    }
+
     /// Every value a concrete scenario of this family draws, by the name it is recorded under
     /// in the scenario's `parameters`, with the range it is drawn from (the sampler's naming:
     /// `map.*`, `target.*`, `heroes[h].*`, `background.*`).

@@ -62,12 +62,22 @@ pub fn load_scenario_set(root: &Path, set: ScenarioSet) -> Result<Vec<ConcreteSc
     Ok(scenarios)
 }
 
-/// The `.json` files of `dir` in name order; a hidden one is refused.
+/// The `.json` files of `dir` in name order. Anything else but rtr's own records is refused: a
+/// set is scored whole, and a file or folder skipped in silence (`x.JSON`, `old/`) would
+/// leave the user believing it was.
 fn scenario_files(dir: &Path) -> Result<Vec<PathBuf>> {
     let mut out = Vec::new();
     for path in crate::io::list_folder(dir)? {
-        if path.extension().is_none_or(|e| e != "json") {
+        if crate::io::is_bookkeeping(&path) {
             continue;
+        }
+        if path.is_dir() || path.extension().is_none_or(|e| e != "json") {
+            return Err(Error::invalid(
+                path.display().to_string(),
+                if path.is_dir() { "folder" } else { "file" },
+                "is not a scenario file (`*.json`) in a scenario set folder, whose every file \
+                 is scored; move it out",
+            ));
         }
         let hidden = path
             .file_name()

@@ -175,7 +175,7 @@ pub struct FittedTerm {
 }
 
 /// The physics terms sim-to-real identified, as saved for the training simulator
-/// (`rtr sim2real --save-dynamics`, loaded by `rtr train --dynamics` or the run file's
+/// (`rtr sim2real`'s `dynamics.toml`, loaded by `rtr train --dynamics` or the run file's
 /// `dynamics` key).
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

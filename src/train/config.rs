@@ -124,8 +124,8 @@ pub struct TrainConfig {
     pub model: ModelConfig,
     #[serde(default)]
     pub limits: ActionLimits,
-    /// Physics terms added to the paper's bicycle (a file written by `rtr sim2real
-    /// --save-dynamics`), relative to the run file. Default: none.
+    /// Physics terms added to the paper's bicycle (the `dynamics.toml` that `rtr sim2real`
+    /// writes), relative to the run file. Default: none.
     #[serde(default)]
     pub dynamics: Option<PathBuf>,
     #[serde(default)]
@@ -684,14 +684,26 @@ impl TrainConfig {
         Ok(dynamics)
     }
 
+    /// Parses and validates a run file's text; a refused value is reported at its line with
+    /// the value found.
     pub fn from_toml_str(text: &str, source_name: &str) -> Result<Self> {
         let config: Self = parse_toml(text, source_name)?;
-        config.validate(source_name)?;
+        config.checks().map_err(|(field, message)| {
+            crate::io::field_error(text, source_name, field, &message)
+        })?;
+        config.model.validate(source_name)?;
         Ok(config)
     }
 
     /// Checks every range a run depends on; errors name the field.
     pub fn validate(&self, source_name: &str) -> Result<()> {
+        self.checks().map_err(|(field, message)| {
+            Error::invalid(source_name, format!("field `{field}`"), message)
+        })?;
+        self.model.validate(source_name)
+    }
+
+    fn checks(&self) -> Check {
         self.check_data()
             .and_then(|()| self.check_optimizer())
             .and_then(|()| self.check_ppo())
@@ -700,10 +712,6 @@ impl TrainConfig {
             .and_then(|()| self.check_init())
             .and_then(|()| self.check_budget())
             .and_then(|()| self.check_paths())
-            .map_err(|(field, message)| {
-                Error::invalid(source_name, format!("field `{field}`"), message)
-            })?;
-        self.model.validate(source_name)
     }
 
     /// Every path the run reads names something: `""` would resolve to the run file's own
@@ -798,10 +806,13 @@ impl TrainConfig {
         if !(o.decay.is_finite() && o.decay > 0.0 && o.decay <= 1.0) {
             return refuse("optimizer.decay", "expected a factor in (0, 1]");
         }
-        if o.epochs == 0 || o.decay_every_epochs == 0 {
+        if o.epochs == 0 {
+            return refuse("optimizer.epochs", "expected at least 1 epoch");
+        }
+        if o.decay_every_epochs == 0 {
             return refuse(
-                "optimizer.epochs",
-                "epochs and decay_every_epochs must be >= 1",
+                "optimizer.decay_every_epochs",
+                "expected a decay every 1 or more epochs",
             );
         }
         if !(o.weight_decay.is_finite() && o.weight_decay >= 0.0) {
@@ -821,10 +832,17 @@ impl TrainConfig {
         let positive = |x: f64| x.is_finite() && x > 0.0;
         let unit = |x: f64| x.is_finite() && (0.0..=1.0).contains(&x);
         let p = &self.ppo;
-        if p.minibatch == 0 || p.batch == 0 || !p.batch.is_multiple_of(p.minibatch) {
+        if p.batch == 0 {
+            return refuse("ppo.batch", "expected at least 1 rollout per iteration");
+        }
+        if p.minibatch == 0 || !p.batch.is_multiple_of(p.minibatch) {
             return refuse(
-                "ppo.batch",
-                "batch and minibatch must be >= 1 and batch a multiple of minibatch",
+                "ppo.minibatch",
+                format!(
+                    "expected a divisor of ppo.batch ({}): every minibatch of an iteration the \
+                     same size",
+                    p.batch
+                ),
             );
         }
         if p.epochs == 0 {
@@ -1011,10 +1029,13 @@ impl TrainConfig {
             return refuse("limits", why);
         }
 
-        if self.run.devices == Some(0) || self.run.checkpoint_every == 0 {
+        if self.run.devices == Some(0) {
+            return refuse("run.devices", "expected at least 1 device");
+        }
+        if self.run.checkpoint_every == 0 {
             return refuse(
-                "run.devices",
-                "devices and checkpoint_every must be at least 1",
+                "run.checkpoint_every",
+                "expected a checkpoint every 1 or more iterations",
             );
         }
         Ok(())
@@ -1094,10 +1115,26 @@ mod tests {
     fn bad_fields_are_named() {
         let err = TrainConfig::from_toml_str("method = \"RTR\"\nalpha = 1.5", "run.toml")
             .expect_err("alpha out of range");
-        assert!(err.to_string().contains("alpha"), "{err}");
+        // At its line, with the value found.
+        assert!(
+            err.to_string()
+                .contains("line 2, column 1: field `alpha` = 1.5: expected a share"),
+            "{err}"
+        );
         let err = TrainConfig::from_toml_str("method = \"RTR\"\n[ppo]\nbatch = 100", "run.toml")
             .expect_err("batch not a multiple");
-        assert!(err.to_string().contains("ppo.batch"), "{err}");
+        assert!(
+            err.to_string().contains("field `ppo.minibatch`")
+                && err.to_string().contains("divisor of ppo.batch (100)"),
+            "{err}"
+        );
+        let err = TrainConfig::from_toml_str("method = \"IL\"\n[run]\ncheckpoint_every = 0", "r")
+            .expect_err("no checkpoints");
+        assert!(
+            err.to_string()
+                .contains("line 3, column 1: field `run.checkpoint_every` = 0"),
+            "{err}"
+        );
         let err = TrainConfig::from_toml_str("method = \"KL-R\"", "run.toml")
             .expect_err("needs a reference");
         assert!(err.to_string().contains("reference"), "{err}");
@@ -1116,7 +1153,7 @@ mod tests {
             let text = format!("method = \"{method}\"\n{sections}");
             let err = TrainConfig::from_toml_str(&text, "run.toml").expect_err(sections);
             assert!(
-                err.to_string().contains(&format!("field `{field}`:")),
+                err.to_string().contains(&format!("field `{field}`")),
                 "{sections}: {err}"
             );
         }
@@ -1126,7 +1163,8 @@ mod tests {
         )
         .expect_err("the warm start's sigma is [init]'s");
         assert!(
-            err.to_string().contains("field `reference.std_from_logs`:"),
+            err.to_string()
+                .contains("line 6, column 1: field `reference.std_from_logs` = true"),
             "{err}"
         );
         let ok = "method = \"KL-R\"\n[init]\npolicy = \"il\"\n[reference]\ninit = true";

@@ -26,12 +26,13 @@ pub fn input_digests(config: &TrainConfig) -> Result<BTreeMap<String, String>> {
         let reference = reference_is_warm_start(config);
         // A warm start that is gone only matters to a new run, whose loading names it.
         if reference || file.is_file() {
-            let bytes = crate::io::read_bytes(&file, Format::Parameters)?;
             let field = if reference {
                 "reference.init"
             } else {
                 WARM_START
             };
+            let bytes =
+                crate::io::read_bytes(&file, Format::Parameters).map_err(|e| e.in_field(field))?;
             out.insert(format!("{field} {}", file.display()), sha256_hex(&bytes));
         }
     }
@@ -40,14 +41,16 @@ pub fn input_digests(config: &TrainConfig) -> Result<BTreeMap<String, String>> {
             continue;
         }
         if !path.is_dir() {
-            let bytes = crate::io::read_bytes(&path, format_of(field))?;
+            let bytes =
+                crate::io::read_bytes(&path, format_of(field)).map_err(|e| e.in_field(field))?;
             out.insert(format!("{field} {}", path.display()), sha256_hex(&bytes));
             continue;
         }
-        for file in files_under(&path)? {
+        for file in files_under(&path).map_err(|e| e.in_field(field))? {
             let relative = file.strip_prefix(&path).unwrap_or(&file);
             if read_from_folder(field, relative) {
-                let bytes = crate::io::read_bytes(&file, format_of(field))?;
+                let bytes = crate::io::read_bytes(&file, format_of(field))
+                    .map_err(|e| e.in_field(field))?;
                 out.insert(format!("{field} {}", file.display()), sha256_hex(&bytes));
             }
         }
@@ -110,7 +113,10 @@ fn read_from_folder(field: &str, relative: &Path) -> bool {
     let name = relative.to_string_lossy();
     match field {
         "data.longtail_dir" => relative.starts_with("train") && name.ends_with(".json"),
-        "data.commonroad.path" => name.ends_with(".xml") || name.ends_with(".xml.gz"),
+        "data.commonroad.path" => {
+            let name = name.to_lowercase();
+            name.ends_with(".xml") || name.ends_with(".xml.gz")
+        }
         _ => true,
     }
 }

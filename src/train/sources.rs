@@ -241,10 +241,13 @@ fn curated_indices(nominal: &[Scene], path: &Path) -> Result<Vec<usize>> {
         .enumerate()
         .map(|(k, s)| (s.id.as_str(), k))
         .collect();
-    crate::io::check_input_file(path, "run file field `data.curated`").map_err(|e| {
-        Error::InvalidArgument(format!(
-            "{e}; expected a scene list written by `rtr curate`"
-        ))
+    crate::io::check_input_file(path, "scene list").map_err(|e| {
+        let why = match e {
+            Error::InvalidArgument(message) => message,
+            other => other.to_string(),
+        };
+        Error::InvalidArgument(format!("{why}; expected one written by `rtr curate`"))
+            .in_field("data.curated")
     })?;
     read_scene_list(path)?
         .iter()
@@ -268,7 +271,10 @@ fn commonroad_per_source(config: &DataConfig) -> Result<Vec<Vec<CommonRoadClip>>
     let per_source = config
         .commonroad
         .iter()
-        .map(|source| load_commonroad(std::slice::from_ref(&source.path), source.speed_limit))
+        .map(|source| {
+            load_commonroad(std::slice::from_ref(&source.path), source.speed_limit)
+                .map_err(|e| e.in_field("data.commonroad.path"))
+        })
         .collect::<Result<Vec<_>>>()?;
     let all: Vec<CommonRoadClip> = per_source.concat();
     check_clip_names(&all)?;

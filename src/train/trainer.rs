@@ -145,10 +145,12 @@ fn warm_start(
         };
         // Its own stream: the seeded initialisation of the run is unchanged.
         let mut rng = ChaCha8Rng::seed_from_u64(stream_seed(config.seed, 0, u64::MAX - 1));
-        checkpoint::load_policy(&init.policy_file(), &pose_only, device)?
+        checkpoint::load_policy(&init.policy_file(), &pose_only, device)
+            .map_err(|e| e.in_field("init.policy"))?
             .with_agent_edge_motion(&mut rng, init.agent_edge_motion_scale as f32)
     } else {
-        checkpoint::load_module(blank, &init.policy_file())?
+        checkpoint::load_module(blank, &init.policy_file())
+            .map_err(|e| e.in_field("init.policy"))?
     };
     if init.std_from_logs {
         std_from_logs(what, init.std_scale, policy, data, config, device)

@@ -150,7 +150,11 @@ pub fn commonroad_files(path: &Path) -> Result<Vec<PathBuf>> {
     let files: Vec<PathBuf> = crate::io::list_folder(path)?
         .into_iter()
         .filter(|p| {
-            let name = p.file_name().and_then(|n| n.to_str()).unwrap_or("");
+            // Any case: `clip.XML` skipped would leave the user believing it was read.
+            let name = p
+                .file_name()
+                .map(|n| n.to_string_lossy().to_lowercase())
+                .unwrap_or_default();
             name.ends_with(".xml") || name.ends_with(".xml.gz")
         })
         .collect();

@@ -88,12 +88,8 @@ impl MapSource {
         if !spec.trim_start().starts_with('{') {
             return ProceduralMap::preset(spec);
         }
-        let value: serde_json::Value = serde_json::from_str(spec).map_err(|e| Error::Parse {
-            source_name: "--procedural".into(),
-            line: e.line(),
-            column: e.column(),
-            message: e.to_string(),
-        })?;
+        let value: serde_json::Value = serde_json::from_str(spec)
+            .map_err(|e| rtr::io::json_error("--procedural", Some(spec), &e))?;
         // A tagged enum's errors carry no position; name the field by comparing with the
         // preset of the same kind instead.
         serde_json::from_value(value.clone()).map_err(|e| {

@@ -13,7 +13,8 @@ use rtr::{Error, Result};
 pub enum ModelCommand {
     /// Configuration and parameter counts of the policy and value networks.
     Info {
-        /// A model config (TOML); missing fields take the paper's defaults.
+        /// A model config (TOML; missing fields take the paper's defaults), or a run file or
+        /// a run's config.toml, whose `[model]` table is read.
         #[arg(long)]
         config: Option<PathBuf>,
         /// The small configuration of the tests and the quick example.
@@ -84,11 +85,25 @@ fn average(checkpoints: &[PathBuf], out: &std::path::Path) -> Result<()> {
     Ok(())
 }
 
+/// The model a settings file describes: a run file (it names a `method`) by its `[model]`
+/// table, checked as the whole run file; otherwise the file is a model config.
+fn model_of(path: &std::path::Path) -> Result<ModelConfig> {
+    let text = rtr::io::read_text(path, rtr::io::Format::Settings)?;
+    let is_run_file =
+        toml::from_str::<toml::Table>(&text).is_ok_and(|table| table.contains_key("method"));
+    let name = path.display().to_string();
+    if is_run_file {
+        Ok(rtr::train::TrainConfig::from_toml_str(&text, &name)?.model)
+    } else {
+        ModelConfig::from_toml_str(&text, &name)
+    }
+}
+
 fn info(config: Option<PathBuf>, small: bool, json: bool) -> Result<()> {
     let config = match (&config, small) {
         (Some(path), _) => {
             rtr::io::check_input_file(path, "--config")?;
-            ModelConfig::from_toml_file(path)?
+            model_of(path)?
         }
         (None, true) => ModelConfig::small(),
         (None, false) => ModelConfig::default(),

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 
-use rtr::io::{Inputs, StagedFolder, claim_output_file, claim_output_folder};
+use rtr::io::{Inputs, StagedFolder, claim_output_folder};
 use rtr::sim2real::{
     CommandTiming, Sim2RealOptions, a9::a9_recordings, identify, plots::write_plots, thinning,
 };
@@ -12,8 +12,12 @@ use rtr::{Error, Result};
 
 use super::args::{DataArgs, count};
 
-/// The kind of result set `rtr sim2real --plots` writes.
-const PLOTS: &str = "rtr sim2real --plots";
+/// The kind of result set `rtr sim2real` writes.
+const KIND: &str = "rtr sim2real";
+/// The JSON report in the result folder.
+const REPORT: &str = "report.json";
+/// The identified terms (TOML) in the result folder, for `rtr train --dynamics`.
+const DYNAMICS: &str = "dynamics.toml";
 
 #[derive(Args)]
 pub struct Sim2RealArgs {
@@ -26,15 +30,12 @@ pub struct Sim2RealArgs {
     a9: bool,
     #[command(flatten)]
     data: DataArgs,
-    /// Where to write the JSON report.
+    /// Result folder: `report.json`, `dynamics.toml` (the identified terms, for `rtr train
+    /// --dynamics` or a run file's `dynamics`) and the plots (`regimes.svg`, `excess.svg`,
+    /// `hypotheses.svg`, `tracks.svg`), written together: an interrupted run leaves the
+    /// earlier results whole.
     #[arg(long)]
-    report: PathBuf,
-    /// Folder for plots (regimes.svg, tracks.svg).
-    #[arg(long)]
-    plots: Option<PathBuf>,
-    /// Write the identified terms (TOML) for `rtr train --dynamics` or a run file's `dynamics`.
-    #[arg(long)]
-    save_dynamics: Option<PathBuf>,
+    out: PathBuf,
     /// Gradient-descent iterations per candidate.
     #[arg(long, default_value_t = 120, value_parser = count(1, 100_000))]
     iterations: usize,
@@ -68,20 +69,10 @@ pub fn run(args: Sim2RealArgs) -> Result<()> {
     let inputs = Inputs::new()
         .with_all("--recordings", &args.recordings)
         .with("--data", args.data.dir());
-    let _report_claim = claim_output_file(&args.report, "--report", &inputs)?;
-    check_distinct_outputs(&args)?;
-    let _claim = match &args.plots {
-        Some(dir) => {
-            let claim = claim_output_folder(dir, "--plots", &inputs)?;
-            rtr::io::check_result_folder(dir, PLOTS, &["regimes.svg", "tracks.svg"])?;
-            Some(claim)
-        }
-        None => None,
-    };
-    let _dynamics_claim = match &args.save_dynamics {
-        Some(path) => Some(claim_output_file(path, "--save-dynamics", &inputs)?),
-        None => None,
-    };
+    let _claim = claim_output_folder(&args.out, "--out", &inputs)?;
+    let mut names = vec![REPORT, DYNAMICS];
+    names.extend(rtr::sim2real::plots::PLOT_FILES);
+    rtr::io::check_result_folder(&args.out, KIND, &names)?;
     let (recordings, commands_inferred) = match &args.recordings {
         Some(path) => {
             rtr::io::check_input_file(path, "--recordings")?;
@@ -120,74 +111,30 @@ pub fn run(args: Sim2RealArgs) -> Result<()> {
     for line in report.summary() {
         rtr::outln!("{line}")?;
     }
-    // Everything is rendered before anything is written, and written together: a plot that
-    // fails leaves no report behind.
-    let json = serde_json::to_string_pretty(report)
-        .map_err(|e| Error::InvalidArgument(format!("cannot encode the report: {e}")))?;
-    let dynamics = match &args.save_dynamics {
-        Some(_) => Some(report.dynamics().to_toml()?),
-        None => None,
-    };
-    let plots = match &args.plots {
-        Some(dir) => {
-            let staged = StagedFolder::new(dir, PLOTS)?;
-            let written = write_plots(staged.path(), &outcome)?;
-            Some((staged, written))
-        }
-        None => None,
-    };
-    rtr::io::atomic_write(&args.report, json.as_bytes())?;
-    if let (Some(path), Some(text)) = (&args.save_dynamics, &dynamics) {
-        rtr::io::atomic_write(path, text.as_bytes())?;
-    }
-    if let Some((staged, written)) = plots {
-        let written: Vec<_> = written.iter().map(|p| staged.final_path(p)).collect();
-        staged.commit()?;
-        for path in written {
-            rtr::outln!("plot: {}", path.display())?;
-        }
-    }
-    rtr::outln!("report: {}", args.report.display())?;
-    if let Some(path) = &args.save_dynamics {
-        rtr::outln!(
-            "dynamics ({} terms): {}",
-            report.dynamics().terms.len(),
-            path.display()
-        )?;
-    }
+    write_results(&args.out, &outcome)?;
+    rtr::outln!("report: {}", args.out.join(REPORT).display())?;
+    rtr::outln!(
+        "dynamics ({} terms): {}",
+        report.dynamics().terms.len(),
+        args.out.join(DYNAMICS).display()
+    )?;
     Ok(())
 }
 
-/// The report, the dynamics file and the plots are different files: one written over another
-/// would lose it.
-fn check_distinct_outputs(args: &Sim2RealArgs) -> Result<()> {
-    let same = |a: &std::path::Path, b: &std::path::Path| {
-        a == b || matches!((a.canonicalize(), b.canonicalize()), (Ok(x), Ok(y)) if x == y)
-    };
-    if let Some(dynamics) = &args.save_dynamics
-        && same(dynamics, &args.report)
-    {
-        return Err(Error::InvalidArgument(format!(
-            "--save-dynamics and --report are both {}; expected two different files",
-            args.report.display()
-        )));
-    }
-    if let Some(dir) = &args.plots {
-        for path in std::iter::once(&args.report).chain(&args.save_dynamics) {
-            if path.parent().is_some_and(|p| same(p, dir))
-                && path
-                    .file_name()
-                    .is_some_and(|n| rtr::sim2real::plots::PLOT_FILES.iter().any(|p| n == *p))
-            {
-                return Err(Error::InvalidArgument(format!(
-                    "{} is one of the plots --plots writes ({}); expected another name",
-                    path.display(),
-                    rtr::sim2real::plots::PLOT_FILES.join(", ")
-                )));
-            }
-        }
-    }
-    Ok(())
+/// The report, the dynamics file and the plots, staged and swapped in as one result set: a
+/// failure or a kill on the way leaves the folder's earlier results as they were.
+fn write_results(out: &std::path::Path, outcome: &rtr::sim2real::Outcome) -> Result<()> {
+    let report = &outcome.report;
+    let json = serde_json::to_string_pretty(report)
+        .map_err(|e| Error::InvalidArgument(format!("cannot encode the report: {e}")))?;
+    let staged = StagedFolder::new(out, KIND)?;
+    rtr::io::atomic_write(&staged.path().join(REPORT), json.as_bytes())?;
+    rtr::io::atomic_write(
+        &staged.path().join(DYNAMICS),
+        report.dynamics().to_toml()?.as_bytes(),
+    )?;
+    write_plots(staged.path(), outcome)?;
+    staged.commit()
 }
 
 /// `auto` (none: decided from the data) or a named timing.

@@ -12,7 +12,7 @@ use rtr::studies::sweep::{check_points, evaluate_points, parse_points, train_poi
 use super::args::{DataArgs, count};
 
 /// The kind of result set `rtr sweep --out` writes (beside its points' training folders).
-const SWEEP_RESULTS: &str = "rtr sweep";
+const SWEEP_RESULTS: &str = rtr::io::SWEEP_KIND;
 
 #[derive(Args)]
 pub struct SweepArgs {
