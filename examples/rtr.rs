@@ -21,7 +21,8 @@ use rtr::backend::Backend;
 use rtr::data::{A9Dataset, SceneConfig, TrafficStatistics, a9};
 use rtr::eval::study::{Entry, evaluate_entries, write_study};
 use rtr::eval::{
-    Estimate, EvalConfig, EvalSet, MethodResult, Metric, TrainedPolicy, load_sets, markdown_table,
+    Estimate, EvalConfig, EvalSet, HeadlineNumbers, HeadlineVerdict, MethodResult, Metric,
+    TrainedPolicy, load_sets, markdown_table,
 };
 use rtr::scenario::{GenerateConfig, builtin_families, generate_sets, load_families};
 use rtr::train::TrainConfig;
@@ -44,7 +45,7 @@ struct Args {
     /// Folder for runs, scenarios, the table and the figures.
     #[arg(long, default_value = "results/demo")]
     out: PathBuf,
-    /// The run file of the training step (default: a 6-iteration RTR fine-tune of models/il_ff).
+    /// The run file of the training step (default: a 6-iteration RTR fine-tune of models/il_main).
     #[arg(long)]
     run_file: Option<PathBuf>,
     /// Device backend for training and evaluation (flex in the default build).
@@ -217,7 +218,8 @@ fn shipped_models(models: &Path, all: bool) -> rtr::Result<Vec<PathBuf>> {
 }
 
 /// The paper's headline (RTR cuts IL's long-tail collisions 12.13 -> 3.61 % while keeping
-/// nominal realism) as measured here, with 95 % bootstrap intervals.
+/// nominal realism) as measured here, with 95 % bootstrap intervals, and its verdict
+/// ([`HeadlineVerdict`], the rule the README's verdict follows too).
 fn headline(il: &MethodResult, rtr: &MethodResult) -> String {
     let get = |r: &MethodResult, set: EvalSet, metric: Metric| {
         r.set(set).and_then(|s| s.get(metric)).unwrap_or(Estimate {
@@ -236,22 +238,14 @@ fn headline(il: &MethodResult, rtr: &MethodResult) -> String {
             b.value / a.value
         )
     };
-    let (il_col, rtr_col) = (
-        get(il, EvalSet::Longtail, Metric::CollisionPct),
-        get(rtr, EvalSet::Longtail, Metric::CollisionPct),
-    );
-    let verdict = if rtr_col.value <= il_col.value / 3.0 {
-        "holds: RTR has at most a third of IL's long-tail collisions (paper 3.61 vs 12.13 %)"
-    } else if rtr_col.value + rtr_col.ci < il_col.value - il_col.ci {
-        "holds in direction only: RTR has fewer long-tail collisions than IL (intervals apart), \
-         but not a third of them as in the paper (3.61 vs 12.13 %)"
-    } else if rtr_col.value - rtr_col.ci > il_col.value + il_col.ci {
-        "does not hold here: RTR has more long-tail collisions than IL (intervals apart); \
-         the paper has 3.61 vs 12.13 %"
-    } else {
-        "does not hold here: RTR's long-tail collisions are not clearly below IL's \
-         (bootstrap intervals overlap); the paper has 3.61 vs 12.13 %"
-    };
+    let verdict = HeadlineVerdict::of(&HeadlineNumbers {
+        il_longtail_collision_pct: get(il, EvalSet::Longtail, Metric::CollisionPct),
+        rtr_longtail_collision_pct: get(rtr, EvalSet::Longtail, Metric::CollisionPct),
+        il_nominal_fde_m: get(il, EvalSet::Nominal, Metric::FdeM).value,
+        rtr_nominal_fde_m: get(rtr, EvalSet::Nominal, Metric::FdeM).value,
+        rtr_nominal_offroad_pct: get(rtr, EvalSet::Nominal, Metric::OffroadPct).value,
+    })
+    .sentence();
     let mut text = String::from("The paper's headline on these models:\n");
     text += &line(
         "long-tail collision",

@@ -294,3 +294,31 @@ fn the_rl_at_scale_model_is_the_one_its_study_measured() {
         .expect("RL long-tail");
     assert!(rl < il, "long-tail infractions: RL {rl} %, IL {il} %");
 }
+
+/// The README's verdict on the paper's headline is the one the example prints: the same rule
+/// (`HeadlineVerdict`) applied to the committed main table.
+#[test]
+fn the_readme_states_the_headline_verdict_of_the_main_table() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let table: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(root.join("experiments/main/results.json")).expect("table"),
+    )
+    .expect("JSON");
+    let value = |method: &str, set: &str, metric: &str| {
+        let v = &table["methods"][method][set];
+        rtr::eval::Estimate {
+            value: v[metric].as_f64().expect(metric),
+            ci: v[format!("{metric}_ci")].as_f64().expect(metric),
+        }
+    };
+    let verdict = rtr::eval::HeadlineVerdict::of(&rtr::eval::HeadlineNumbers {
+        il_longtail_collision_pct: value("IL", "longtail", "collision_pct"),
+        rtr_longtail_collision_pct: value("RTR", "longtail", "collision_pct"),
+        il_nominal_fde_m: value("IL", "nominal", "fde_m").value,
+        rtr_nominal_fde_m: value("RTR", "nominal", "fde_m").value,
+        rtr_nominal_offroad_pct: value("RTR", "nominal", "offroad_pct").value,
+    });
+    let readme = std::fs::read_to_string(root.join("README.md")).expect("README.md");
+    let stated = format!("**Verdict: the paper's headline {}.**", verdict.summary());
+    assert!(readme.contains(&stated), "README.md should say {stated}");
+}

@@ -10,6 +10,7 @@
 //! - [`trained`]: loading a run's policy; [`averaged`]: the weight average of checkpoints;
 //! - [`report`], [`plots`]: tables, JSON, figures;
 //! - [`study`]: several policies evaluated side by side (training them is `crate::studies`);
+//!   [`headline`]: whether they bear out the paper's headline;
 //! - [`curate`]: the training scenes a policy fails on (the "Curated" scenario set);
 //! - [`watch`]: one scene's rollout with its infractions, for an animation.
 
@@ -19,6 +20,7 @@ pub mod collisions;
 pub mod curate;
 pub mod evaluate;
 pub mod features;
+pub mod headline;
 pub mod histogram;
 pub mod metrics;
 pub mod plots;
@@ -35,6 +37,7 @@ pub mod watch;
 pub use bootstrap::Estimate;
 pub use evaluate::{EvalConfig, SetResult, evaluate, evaluate_tallies, summarise};
 pub use features::Feature;
+pub use headline::{HeadlineNumbers, HeadlineVerdict};
 pub use histogram::{Histogram, jensen_shannon};
 pub use metrics::{Metric, SceneTally};
 pub use policy::{EvalPolicy, IdmBaseline};

@@ -1,4 +1,4 @@
-//! The study's figures: the Pareto plot (long-tail collisions against nominal realism, the
+//! The study's figures: the Pareto plot (long-tail infractions against nominal realism, the
 //! baselines' frontier shaded), the feature histograms behind each JSD, training curves, and
 //! top-down rollouts beside the log. Charts are SVG (their text needs no fonts there; a PNG
 //! chart would need system fonts); rollouts are PNG through [`crate::render`], whose SVG of a
@@ -54,13 +54,14 @@ pub fn file_stem(name: &str) -> String {
     out.trim_matches('_').to_string()
 }
 
-/// Points (x = nominal `realism`, y = long-tail collision %) of the methods that have both.
+/// Points (x = nominal `realism`, y = long-tail infraction %, collision or off-road, the
+/// paper's trade-off) of the methods that have both.
 fn pareto_points(methods: &[MethodResult], realism: Metric) -> Vec<(String, f64, f64)> {
     methods
         .iter()
         .filter_map(|m| {
             let x = m.set(EvalSet::Nominal)?.get(realism)?.value;
-            let y = m.set(EvalSet::Longtail)?.get(Metric::CollisionPct)?.value;
+            let y = m.set(EvalSet::Longtail)?.get(Metric::InfractionPct)?.value;
             Some((m.method.clone(), x, y))
         })
         .collect()
@@ -79,7 +80,7 @@ pub fn frontier(points: &[(f64, f64)]) -> Vec<(f64, f64)> {
     out
 }
 
-/// `pareto_<metric>.svg`: long-tail collision % against a nominal realism metric; the region
+/// `pareto_<metric>.svg`: long-tail infraction % against a nominal realism metric; the region
 /// the learned baselines dominate is shaded, so a method outside it is beyond their frontier.
 pub fn pareto(dir: &Path, methods: &[MethodResult], realism: Metric) -> Result<Option<PathBuf>> {
     let points = pareto_points(methods, realism);
@@ -94,28 +95,36 @@ pub fn pareto(dir: &Path, methods: &[MethodResult], realism: Metric) -> Result<O
 }
 
 fn draw_pareto(path: &Path, points: &[(String, f64, f64)], realism: Metric) -> DrawResult {
-    let x_max = points.iter().map(|p| p.1).fold(0.0, f64::max) * 1.25 + 1e-6;
+    // Realism spans decades (a policy that parks has 40x IL's FDE): a log axis keeps the
+    // realistic methods apart instead of in one corner.
+    let floor = 1e-3;
+    let xs = || points.iter().map(|p| p.1.max(floor));
+    let x_min = xs().fold(f64::INFINITY, f64::min) / 1.5;
+    let x_max = xs().fold(floor, f64::max) * 1.5;
     let y_max = points.iter().map(|p| p.2).fold(0.0, f64::max) * 1.25 + 1.0;
     let root = SVGBackend::new(path, (720, 520)).into_drawing_area();
     root.fill(&WHITE)?;
     let mut chart = ChartBuilder::on(&root)
         .caption(
-            "Long-tail collisions vs nominal realism",
+            "Long-tail infractions vs nominal realism",
             ("sans-serif", 20),
         )
         .margin(12)
         .x_label_area_size(45)
         .y_label_area_size(55)
-        .build_cartesian_2d(0.0..x_max, 0.0..y_max)?;
+        .build_cartesian_2d((x_min..x_max).log_scale(), 0.0..y_max)?;
     chart
         .configure_mesh()
-        .x_desc(format!("nominal {} (lower is better)", realism.header()))
-        .y_desc("long-tail collision % (lower is better)")
+        .x_desc(format!(
+            "nominal {} (lower is better; log scale)",
+            realism.header()
+        ))
+        .y_desc("long-tail collision or off-road % (lower is better)")
         .draw()?;
     let baselines: Vec<(f64, f64)> = points
         .iter()
         .filter(|p| p.0 != PROPOSED && p.0 != REFERENCE)
-        .map(|p| (p.1, p.2))
+        .map(|p| (p.1.max(floor), p.2))
         .collect();
     let front = frontier(&baselines);
     if let (Some(first), Some(last)) = (front.first(), front.last()) {
@@ -141,12 +150,16 @@ fn draw_pareto(path: &Path, points: &[(String, f64, f64)], realism: Metric) -> D
             PALETTE[k % 7]
         };
         chart
-            .draw_series(std::iter::once(Circle::new((*x, *y), 6, color.filled())))?
+            .draw_series(std::iter::once(Circle::new(
+                (x.max(floor), *y),
+                6,
+                color.filled(),
+            )))?
             .label(name.clone())
             .legend(move |(x, y)| Circle::new((x, y), 5, color.filled()));
         chart.draw_series(std::iter::once(Text::new(
             name.clone(),
-            (*x, *y),
+            (x.max(floor), *y),
             ("sans-serif", 14).into_font(),
         )))?;
     }
