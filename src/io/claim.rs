@@ -134,40 +134,21 @@ fn refuse_inside_a_result_set(target: &Path, shown: &Path, flag: &str) -> Result
 /// publishing a result set replaces the folder whole, and that process's files would be
 /// pulled from under it.
 fn refuse_holding_a_claim(target: &Path, shown: &Path, flag: &str) -> Result<()> {
-    // Deep enough for any rtr layout (a sweep's point's checkpoints), bounded for a --out
-    // that names a large tree.
-    const MAX_DEPTH: usize = 8;
-    const MAX_ENTRIES: usize = 200_000;
-    let mut pending = vec![(target.to_path_buf(), 0usize)];
-    let mut seen = 0usize;
-    while let Some((dir, depth)) = pending.pop() {
-        let Ok(entries) = std::fs::read_dir(&dir) else {
-            continue;
-        };
-        for entry in entries.flatten() {
-            seen += 1;
-            if seen > MAX_ENTRIES {
-                return Ok(());
-            }
-            let path = entry.path();
-            let is_dir = entry.file_type().is_ok_and(|t| t.is_dir());
-            if is_dir && depth < MAX_DEPTH {
-                pending.push((path, depth + 1));
-            } else if !is_dir
-                && is_lock_file(&path)
-                && let Some(holder) = live_holder(&path)
-            {
-                return Err(Error::InvalidArgument(format!(
-                    "{flag} {} holds an output that another rtr process is writing (in {}: \
-                     {holder}); publishing there would replace that folder under it: wait for \
-                     it or choose another {flag}",
-                    shown.display(),
-                    path.parent().unwrap_or(&path).display(),
-                )));
-            }
+    super::output_tree::walk(target, |path, is_folder| {
+        if is_folder || !is_lock_file(path) {
+            return Ok(true);
         }
-    }
-    Ok(())
+        match live_holder(path) {
+            None => Ok(true),
+            Some(holder) => Err(Error::InvalidArgument(format!(
+                "{flag} {} holds an output that another rtr process is writing (in {}: \
+                 {holder}); publishing there would replace that folder under it: wait for it \
+                 or choose another {flag}",
+                shown.display(),
+                path.parent().unwrap_or(path).display(),
+            ))),
+        }
+    })
 }
 
 fn is_lock_file(path: &Path) -> bool {

@@ -11,6 +11,7 @@ mod input;
 mod json_error;
 mod nested;
 mod output;
+mod output_tree;
 mod process_files;
 mod staged;
 mod toml_field;

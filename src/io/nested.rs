@@ -12,46 +12,23 @@ use crate::error::{Error, Result};
 pub const SWEEP_KIND: &str = "rtr sweep";
 
 /// Refuses to publish `target` as the result set of the command `kind` when a folder inside
-/// it holds another result set. Bounded like the search for live writers: a `--out` naming a
-/// large tree is not walked whole.
+/// it holds another result set.
 pub fn refuse_nested_result_sets(target: &Path, kind: &str) -> Result<()> {
-    const MAX_DEPTH: usize = 8;
-    const MAX_ENTRIES: usize = 200_000;
-    let mut pending = vec![(target.to_path_buf(), 0usize)];
-    let mut seen = 0usize;
-    while let Some((dir, depth)) = pending.pop() {
-        let Ok(entries) = std::fs::read_dir(&dir) else {
-            continue;
-        };
-        for entry in entries.flatten() {
-            seen += 1;
-            if seen > MAX_ENTRIES {
-                return Ok(());
-            }
-            // Links are not followed: a link to a result set elsewhere is not inside.
-            if !entry.file_type().is_ok_and(|t| t.is_dir()) {
-                continue;
-            }
-            let path = entry.path();
-            if !super::claim::is_result_set(&path) {
-                if depth < MAX_DEPTH {
-                    pending.push((path, depth + 1));
-                }
-                continue;
-            }
-            if kind == SWEEP_KIND && is_training_run(&path) {
-                continue;
-            }
-            return Err(Error::InvalidArgument(format!(
-                "{} holds {}, the result set of another rtr command (a training run, a model or \
-                 an evaluation); published as one `{kind}` result set around it, that one could \
-                 not be written again: choose another folder, or move it out",
-                target.display(),
-                path.display()
-            )));
+    super::output_tree::walk(target, |path, is_folder| {
+        if !is_folder || !super::claim::is_result_set(path) {
+            return Ok(true);
         }
-    }
-    Ok(())
+        if kind == SWEEP_KIND && is_training_run(path) {
+            return Ok(false);
+        }
+        Err(Error::InvalidArgument(format!(
+            "{} holds {}, the result set of another rtr command (a training run, a model or \
+             an evaluation); published as one `{kind}` result set around it, that one could \
+             not be written again: choose another folder, or move it out",
+            target.display(),
+            path.display()
+        )))
+    })
 }
 
 /// A training run's folder (a sweep's point).
