@@ -36,19 +36,48 @@ impl Inputs {
 }
 
 /// Checks, before any work, that the file `path` (given with `flag`) can be written and is
-/// none of `inputs`, nor inside an input folder; then locks it against other rtr processes
-/// until the returned claim is dropped.
-pub fn claim_output_file(path: &Path, flag: &str, inputs: &Inputs) -> Result<OutputClaim> {
+/// none of `inputs`, nor inside an input folder, and that a file already there is of a kind
+/// the command writes (one of `extensions`, any case): a run file or recordings of the user's
+/// are not replaced by a scene list or a map. Then locks it against other rtr processes until
+/// the returned claim is dropped.
+pub fn claim_output_file(
+    path: &Path,
+    flag: &str,
+    inputs: &Inputs,
+    extensions: &[&str],
+) -> Result<OutputClaim> {
     // An input first: that says more than "is a file" of the same path.
     refuse_overlap(path, flag, inputs)?;
     check_output(path, OutputKind::File, flag)?;
     let target = resolved(path);
     refuse_inside_a_claim(&target, path, flag)?;
     refuse_inside_a_result_set(&target, path, flag)?;
+    refuse_replacing_another_kind(path, flag, extensions)?;
     let claim = lock(&target, path, flag)?;
     // Under the lock: the temporary file a killed writer of this output left is nobody's.
     super::output::remove_stale_temporaries(folder_of(&target));
     Ok(claim)
+}
+
+/// Refuses an existing file at `path` whose extension is none of `extensions`.
+fn refuse_replacing_another_kind(path: &Path, flag: &str, extensions: &[&str]) -> Result<()> {
+    if !path.is_file() {
+        return Ok(());
+    }
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_lowercase())
+        .unwrap_or_default();
+    if extensions.iter().any(|e| name.ends_with(&format!(".{e}"))) {
+        return Ok(());
+    }
+    let kinds: Vec<String> = extensions.iter().map(|e| format!(".{e}")).collect();
+    Err(Error::InvalidArgument(format!(
+        "{flag} {} exists and is not a file this command writes ({}); it would be replaced: \
+         choose another {flag}, or remove it first",
+        path.display(),
+        kinds.join(" or ")
+    )))
 }
 
 /// An output claimed by [`claim_output_file`] or [`claim_output_folder`]; the claim lasts as
@@ -370,9 +399,34 @@ mod tests {
         assert_eq!(lock_files(), 0, "the lock file goes with its claim");
         let _claim = claim_output_folder(&out, "--out", &Inputs::new()).expect("free again");
         let file = dir.path().join("report.json");
-        let _report = claim_output_file(&file, "--report", &Inputs::new()).expect("a file");
-        let err = claim_output_file(&file, "--report", &Inputs::new()).expect_err("twice");
+        let _report =
+            claim_output_file(&file, "--report", &Inputs::new(), &["json"]).expect("a file");
+        let err =
+            claim_output_file(&file, "--report", &Inputs::new(), &["json"]).expect_err("twice");
         assert!(err.to_string().contains("another rtr process"), "{err}");
+    }
+
+    #[test]
+    fn an_existing_file_of_another_kind_is_not_replaced() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let run_file = dir.path().join("run.toml");
+        std::fs::write(&run_file, "method = \"IL\"\n").expect("write");
+        let err = claim_output_file(&run_file, "--out", &Inputs::new(), &["csv"])
+            .expect_err("a run file is not recordings")
+            .to_string();
+        assert!(err.contains("run.toml") && err.contains("(.csv)"), "{err}");
+        let old = dir.path().join("old.CSV");
+        std::fs::write(&old, "track_id\n").expect("write");
+        drop(claim_output_file(&old, "--out", &Inputs::new(), &["csv"]).expect("its own kind"));
+        drop(
+            claim_output_file(
+                &dir.path().join("new.toml"),
+                "--out",
+                &Inputs::new(),
+                &["csv"],
+            )
+            .expect("a new file, whatever its name"),
+        );
     }
 
     #[test]
@@ -394,7 +448,8 @@ mod tests {
             model.join("policy.bpk"),
             eval.join("figures/extra.png"),
         ] {
-            let err = claim_output_file(&file, "--out", &Inputs::new()).expect_err("inside");
+            let err =
+                claim_output_file(&file, "--out", &Inputs::new(), &["json"]).expect_err("inside");
             assert!(err.to_string().contains("result set"), "{err}");
         }
         let err = claim_output_folder(&run.join("checkpoints/mean"), "--out", &Inputs::new())
@@ -402,8 +457,13 @@ mod tests {
         assert!(err.to_string().contains("result set"), "{err}");
         // The set itself (its own command's next run) and a sibling are fine.
         let _own = claim_output_folder(&eval, "--out", &Inputs::new()).expect("the set itself");
-        let _sibling = claim_output_file(&dir.path().join("r.json"), "--report", &Inputs::new())
-            .expect("beside it");
+        let _sibling = claim_output_file(
+            &dir.path().join("r.json"),
+            "--report",
+            &Inputs::new(),
+            &["json"],
+        )
+        .expect("beside it");
     }
 
     #[test]
@@ -441,7 +501,8 @@ mod tests {
             let err = claim_output_folder(&out, "--out", &inputs).expect_err("overlap");
             assert!(err.to_string().contains(why), "{err}");
         }
-        let err = claim_output_file(&run_file, "--report", &inputs).expect_err("same file");
+        let err =
+            claim_output_file(&run_file, "--report", &inputs, &["json"]).expect_err("same file");
         assert!(err.to_string().contains("is the input --config"), "{err}");
         let _claim = claim_output_folder(&dir.path().join("runs/b"), "--out", &inputs)
             .expect("a sibling is fine");

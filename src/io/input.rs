@@ -267,6 +267,40 @@ pub fn list_folder(dir: &Path) -> Result<Vec<PathBuf>> {
     Ok(paths)
 }
 
+/// The files under `dir` and its sub-folders, hidden ones (names starting with `.`) left out,
+/// each folder's in name order, a sub-folder's files where its name sorts. A folder reached twice (a link back to a folder above it) is refused by
+/// name rather than walked until the path is too long.
+pub fn files_in_tree(dir: &Path) -> Result<Vec<PathBuf>> {
+    fn walk(dir: &Path, seen: &mut Vec<PathBuf>, out: &mut Vec<PathBuf>) -> Result<()> {
+        let real = dir.canonicalize().map_err(|e| Error::io(dir, e))?;
+        if seen.contains(&real) {
+            return Err(Error::invalid(
+                dir.display().to_string(),
+                "folder",
+                "leads back to a folder already read (a symlink loop); expected a tree",
+            ));
+        }
+        seen.push(real);
+        for path in list_folder(dir)? {
+            let hidden = path
+                .file_name()
+                .is_some_and(|n| n.to_string_lossy().starts_with('.'));
+            if hidden {
+                continue;
+            }
+            if path.is_dir() {
+                walk(&path, seen, out)?;
+            } else {
+                out.push(path);
+            }
+        }
+        Ok(())
+    }
+    let mut out = Vec::new();
+    walk(dir, &mut Vec::new(), &mut out)?;
+    Ok(out)
+}
+
 /// `bytes` as text, or an error naming `source_name` and the line and column of the first
 /// byte that is not UTF-8 (a binary or Latin-1 file given by mistake), not a bare "invalid
 /// UTF-8".
@@ -292,6 +326,20 @@ pub fn utf8_text(bytes: Vec<u8>, source_name: &str) -> Result<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_tree_is_read_whole_and_a_folder_loop_is_named() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        std::fs::create_dir_all(dir.path().join("a/b")).expect("mkdir");
+        std::fs::write(dir.path().join("a/b/clip.xml"), "x").expect("write");
+        std::fs::write(dir.path().join("top.xml"), "x").expect("write");
+        std::fs::write(dir.path().join(".hidden.xml"), "x").expect("write");
+        let files = files_in_tree(dir.path()).expect("a tree");
+        assert_eq!(files.len(), 2, "{files:?}");
+        std::os::unix::fs::symlink("..", dir.path().join("a/b/up")).expect("symlink");
+        let err = files_in_tree(dir.path()).expect_err("a loop").to_string();
+        assert!(err.contains("symlink loop"), "{err}");
+    }
 
     #[test]
     fn a_fifo_is_refused_without_blocking() {

@@ -20,8 +20,8 @@ pub use claim::{
     Inputs, OutputClaim, claim_output_file, claim_output_folder, is_bookkeeping, resolved,
 };
 pub use input::{
-    Capped, Format, capped, check_input_file, check_input_folder, check_input_path, list_folder,
-    not_regular, open_regular, read_bytes, read_error, read_text, utf8_text,
+    Capped, Format, capped, check_input_file, check_input_folder, check_input_path, files_in_tree,
+    list_folder, not_regular, open_regular, read_bytes, read_error, read_text, utf8_text,
 };
 pub use json_error::json_error;
 pub use nested::SWEEP_KIND;

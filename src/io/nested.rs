@@ -22,9 +22,9 @@ pub fn refuse_nested_result_sets(target: &Path, kind: &str) -> Result<()> {
             return Ok(false);
         }
         Err(Error::InvalidArgument(format!(
-            "{} holds {}, the result set of another rtr command (a training run, a model or \
-             an evaluation); published as one `{kind}` result set around it, that one could \
-             not be written again: choose another folder, or move it out",
+            "{} holds {}, another rtr command's result (a training run, a model or an \
+             evaluation); the results of `{kind}` are not written around it, since no command \
+             could write inside them again: choose another folder, or move it out",
             target.display(),
             path.display()
         )))

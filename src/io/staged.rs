@@ -194,6 +194,10 @@ pub fn check_result_folder(target: &Path, kind: &str, names: &[&str]) -> Result<
 /// `rtr downstream` into an `rtr eval` folder would replace one study with another.
 fn refuse_other_kind(target: &Path, kind: &str) -> Result<()> {
     let earlier = match recorded_kind(target)? {
+        // A model or a training run: no record of rtr's results, but rtr's all the same.
+        Kind::None if super::claim::is_result_set(target) => {
+            "a model or a training run (policy.bpk or checkpoints/)".into()
+        }
         Kind::None => return Ok(()),
         Kind::Command(earlier) if earlier == kind => return Ok(()),
         Kind::Command(earlier) => format!("the results of `{earlier}`"),
@@ -408,6 +412,18 @@ mod tests {
         })();
         assert!(result.is_err());
         assert!(names(root.path()).is_empty(), "{:?}", names(root.path()));
+    }
+
+    #[test]
+    fn a_model_or_a_training_run_is_no_other_commands_output() {
+        let root = tempfile::tempdir().expect("temp dir");
+        let model = root.path().join("model");
+        std::fs::create_dir(&model).expect("mkdir");
+        std::fs::write(model.join("policy.bpk"), b"weights").expect("write");
+        let err = check_result_folder(&model, "rtr scenarios generate", &["train"])
+            .expect_err("a model folder")
+            .to_string();
+        assert!(err.contains("a model or a training run"), "{err}");
     }
 
     #[test]

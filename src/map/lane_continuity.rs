@@ -23,8 +23,9 @@ pub fn first_step(records: &[Poly3Record], widths: bool) -> Option<(usize, f64)>
 }
 
 /// The first place where a lane ends a section with its edges more than [`MAX_EDGE_STEP`] from
-/// where the lane it links to as successor starts the next one: the index of that next
-/// section and what is wrong. A lane that closes (narrows to about nothing) merges into its
+/// where the lane that continues it ([`super::opendrive::LaneSection::links_to`]: declared
+/// links, else the same id) starts the next one: the index of that next section and what is
+/// wrong. A lane that closes (narrows to about nothing) merges into its
 /// successor, and one that opens splits from its predecessor: their edges need not meet.
 pub fn first_section_break(road: &Road) -> Option<(usize, String)> {
     road.lane_sections
@@ -33,38 +34,30 @@ pub fn first_section_break(road: &Road) -> Option<(usize, String)> {
         .find_map(|(k, pair)| {
             let (section, next) = (&pair[0], &pair[1]);
             let at = next.s;
-            let mut ends: Vec<(i32, Vec<i32>, LaneSpan)> = Vec::new();
-            for_each_span(road, section, at, |lane, span| {
-                ends.push((lane.id, lane.successors.clone(), span));
-            });
+            let mut ends: Vec<LaneSpan> = Vec::new();
+            for_each_span(road, section, at, |_, span| ends.push(span));
             let mut starts: Vec<LaneSpan> = Vec::new();
             for_each_span(road, next, at, |_, span| starts.push(span));
-            ends.iter().find_map(|(id, successors, end)| {
-                successors.iter().find_map(|succ| {
-                    let start = starts.iter().find(|s| s.id == *succ)?;
-                    if end.width().min(start.width()) <= MAX_EDGE_STEP {
-                        return None;
-                    }
-                    let step = (end.inner - start.inner)
-                        .abs()
-                        .max((end.outer - start.outer).abs());
-                    (step > MAX_EDGE_STEP).then(|| {
-                        (
-                            k + 1,
-                            format!(
-                                "road {}: lane {id} ends the laneSection at s={} with its edges at \
-                                 t = {:.2} / {:.2} m, but its successor lane {succ} starts the next \
-                                 one at t = {:.2} / {:.2} m ({step:.2} m apart); expected linked \
-                                 lanes to meet within {MAX_EDGE_STEP} m",
-                                road.id,
-                                section.s,
-                                end.inner,
-                                end.outer,
-                                start.inner,
-                                start.outer
-                            ),
-                        )
-                    })
+            section.links_to(next).into_iter().find_map(|(from, to)| {
+                let end = ends.iter().find(|s| s.id == from)?;
+                let start = starts.iter().find(|s| s.id == to)?;
+                if end.width().min(start.width()) <= MAX_EDGE_STEP {
+                    return None;
+                }
+                let step = (end.inner - start.inner)
+                    .abs()
+                    .max((end.outer - start.outer).abs());
+                (step > MAX_EDGE_STEP).then(|| {
+                    (
+                        k + 1,
+                        format!(
+                            "road {}: lane {from} ends the laneSection at s={} with its edges at \
+                             t = {:.2} / {:.2} m, but lane {to}, which continues it in the next \
+                             one, starts at t = {:.2} / {:.2} m ({step:.2} m apart); expected \
+                             joined lanes to meet within {MAX_EDGE_STEP} m",
+                            road.id, section.s, end.inner, end.outer, start.inner, start.outer
+                        ),
+                    )
                 })
             })
         })

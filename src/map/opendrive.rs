@@ -322,6 +322,25 @@ impl LaneSection {
     pub fn lane(&self, id: i32) -> Option<&Lane> {
         self.lanes().find(|l| l.id == id)
     }
+
+    /// The lanes of this section joined to those of the `next` one of the same road, as (id
+    /// here, id there): each lane's declared successors, the lanes of `next` that declare a
+    /// predecessor, and, where neither side declares a link, the lane with the same id.
+    /// Pairs may repeat (declared on both sides).
+    pub fn links_to(&self, next: &LaneSection) -> Vec<(i32, i32)> {
+        let mut out = Vec::new();
+        for lane in self.lanes() {
+            out.extend(lane.successors.iter().map(|&to| (lane.id, to)));
+            let undeclared = next.lane(lane.id).is_none_or(|l| l.predecessors.is_empty());
+            if lane.successors.is_empty() && undeclared && next.lane(lane.id).is_some() {
+                out.push((lane.id, lane.id));
+            }
+        }
+        for lane in next.lanes() {
+            out.extend(lane.predecessors.iter().map(|&from| (from, lane.id)));
+        }
+        out
+    }
 }
 
 #[cfg(test)]

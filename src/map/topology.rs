@@ -136,45 +136,21 @@ pub(super) fn connect(od: &OpenDrive, lanes: &mut [Lane], source: &str) -> Resul
     Ok(connected)
 }
 
-/// Lane links between consecutive sections of a road; with no link on either side, a lane
-/// continues into the lane with the same id.
+/// Lane links between consecutive sections of a road ([`super::opendrive::LaneSection::links_to`]).
 fn section_joins(lk: &Lookup, joins: &mut Vec<Join>) {
     for (r, road) in lk.od.roads.iter().enumerate() {
         for pair in lk.sections[r].windows(2) {
             let (a, b) = (pair[0], pair[1]);
             let (sa, sb) = (&road.lane_sections[a], &road.lane_sections[b]);
-            for lane in sa.lanes() {
-                let Some(la) = lk.lane(r, Some(a), lane.id) else {
-                    continue;
-                };
-                for &succ in &lane.successors {
-                    if let Some(lb) = lk.lane(r, Some(b), succ) {
-                        joins.push(((la, End::End), (lb, End::Start)));
-                    }
-                }
-                let undeclared = sb.lane(lane.id).is_none_or(|l| l.predecessors.is_empty());
-                if lane.successors.is_empty()
-                    && undeclared
-                    && let Some(lb) = lk.lane(r, Some(b), lane.id)
-                {
+            for (from, to) in sa.links_to(sb) {
+                if let (Some(la), Some(lb)) = (lk.lane(r, Some(a), from), lk.lane(r, Some(b), to)) {
                     joins.push(((la, End::End), (lb, End::Start)));
-                }
-            }
-            for lane in sb.lanes() {
-                let Some(lb) = lk.lane(r, Some(b), lane.id) else {
-                    continue;
-                };
-                for &pred in &lane.predecessors {
-                    if let Some(la) = lk.lane(r, Some(a), pred) {
-                        joins.push(((la, End::End), (lb, End::Start)));
-                    }
                 }
             }
         }
     }
 }
 
-/// Road-to-road links with the lane links of the touching sections.
 fn road_joins(lk: &Lookup, joins: &mut Vec<Join>) -> Result<()> {
     for (r, road) in lk.od.roads.iter().enumerate() {
         for (link, end) in [(&road.predecessor, End::Start), (&road.successor, End::End)] {

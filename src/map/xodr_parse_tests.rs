@@ -678,6 +678,12 @@ fn lane_edges_that_jump_along_a_road_are_refused() {
     )
     .expect("continuous edges");
     parse_xodr(&road("", &linked, &section(3.6)), "t").expect("sections that meet");
+    // Without a link, a lane continues into the lane of the same id.
+    let unlinked = lane(&width(0, 3.5), "");
+    let text = road("", &unlinked, &section(9.5));
+    let (line, message) = parse_err(&text);
+    assert!(message.contains("6.00 m apart"), "{message}");
+    assert_eq!(line, line_of(&text, "<laneSection s=\"100\""));
     for (text, needle, what) in [
         (
             road(
@@ -696,7 +702,7 @@ fn lane_edges_that_jump_along_a_road_are_refused() {
         (
             road("", &linked, &section(2.0)),
             "<laneSection s=\"100\"",
-            "successor lane -1",
+            "lane -1, which continues it",
         ),
     ] {
         let (line, message) = parse_err(&text);

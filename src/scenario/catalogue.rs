@@ -78,16 +78,10 @@ pub fn load_families(dir: &Path) -> Result<Vec<LogicalScenario>> {
 }
 
 fn collect_toml(dir: &Path, out: &mut Vec<PathBuf>) -> Result<()> {
-    for path in crate::io::list_folder(dir)? {
-        if path.is_dir() {
-            collect_toml(&path, out)?;
-        } else if path
-            .extension()
+    out.extend(crate::io::files_in_tree(dir)?.into_iter().filter(|path| {
+        path.extension()
             .is_some_and(|e| e.eq_ignore_ascii_case("toml"))
-        {
-            out.push(path);
-        }
-    }
+    }));
     Ok(())
 }
 

@@ -939,6 +939,17 @@ impl TrainConfig {
                     "the warm start's sigma is [init]'s (std_from_logs, std_scale); drop it here",
                 );
             }
+            // A section the method never reads would be recorded in the run's config as if
+            // it were in effect.
+            (Some(_), false) => {
+                return refuse(
+                    "reference",
+                    format!(
+                        "only KL-L and KL-R use a [reference]; {} does not: drop the section",
+                        self.method.name()
+                    ),
+                );
+            }
             _ => {}
         }
         Ok(())
@@ -1149,6 +1160,8 @@ mod tests {
             ("KL-R", "[reference]\ninit = true", "reference.init"),
             // Checked for every method, though only KL-L and KL-R use it.
             ("RTR", "[reference]\nweight = 1.0", "reference"),
+            // A complete section a method never reads.
+            ("RTR", "[reference]\ncheckpoint = \"il.bpk\"", "reference"),
         ] {
             let text = format!("method = \"{method}\"\n{sections}");
             let err = TrainConfig::from_toml_str(&text, "run.toml").expect_err(sections);

@@ -46,7 +46,7 @@ pub fn input_digests(config: &TrainConfig) -> Result<BTreeMap<String, String>> {
             out.insert(format!("{field} {}", path.display()), sha256_hex(&bytes));
             continue;
         }
-        for file in files_under(&path).map_err(|e| e.in_field(field))? {
+        for file in crate::io::files_in_tree(&path).map_err(|e| e.in_field(field))? {
             let relative = file.strip_prefix(&path).unwrap_or(&file);
             if read_from_folder(field, relative) {
                 let bytes = crate::io::read_bytes(&file, format_of(field))
@@ -130,7 +130,7 @@ fn folder_digests(config: &TrainConfig) -> Result<BTreeMap<String, String>> {
             continue;
         }
         let mut listing = String::new();
-        for file in files_under(&path)? {
+        for file in crate::io::files_in_tree(&path)? {
             let relative = file
                 .strip_prefix(&path)
                 .unwrap_or(&file)
@@ -143,24 +143,6 @@ fn folder_digests(config: &TrainConfig) -> Result<BTreeMap<String, String>> {
             format!("{field} {}", path.display()),
             sha256_hex(listing.as_bytes()),
         );
-    }
-    Ok(out)
-}
-
-fn files_under(dir: &Path) -> Result<Vec<std::path::PathBuf>> {
-    let mut out = Vec::new();
-    for path in crate::io::list_folder(dir)? {
-        let hidden = path
-            .file_name()
-            .is_some_and(|n| n.to_string_lossy().starts_with('.'));
-        if hidden {
-            continue;
-        }
-        if path.is_dir() {
-            out.extend(files_under(&path)?);
-        } else {
-            out.push(path);
-        }
     }
     Ok(out)
 }

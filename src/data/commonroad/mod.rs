@@ -136,7 +136,7 @@ impl CommonRoadClip {
 }
 
 /// The CommonRoad files a path names: itself, or the `.xml` / `.xml.gz` files of a folder
-/// (sorted by name).
+/// and its sub-folders (by name).
 pub fn commonroad_files(path: &Path) -> Result<Vec<PathBuf>> {
     if !path.is_dir() {
         if !path.exists() {
@@ -147,7 +147,8 @@ pub fn commonroad_files(path: &Path) -> Result<Vec<PathBuf>> {
         }
         return Ok(vec![path.to_path_buf()]);
     }
-    let files: Vec<PathBuf> = crate::io::list_folder(path)?
+    // The whole tree: a clip in a sub-folder skipped would leave the user believing it read.
+    let files: Vec<PathBuf> = crate::io::files_in_tree(path)?
         .into_iter()
         .filter(|p| {
             // Any case: `clip.XML` skipped would leave the user believing it was read.

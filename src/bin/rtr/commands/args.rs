@@ -125,7 +125,7 @@ pub fn image_targets(
             Error::InvalidArgument(why) => Error::InvalidArgument(format!("--out {why}")),
             other => other,
         })?;
-        claims.push(claim_output_file(path, "--out", inputs)?);
+        claims.push(claim_output_file(path, "--out", inputs, &["png", "svg"])?);
     }
     Ok((paths, claims))
 }

@@ -36,7 +36,7 @@ pub fn run(args: CurateArgs) -> Result<()> {
     let inputs = Inputs::new()
         .with("--checkpoint", &args.checkpoint)
         .with("--data", args.data.dir());
-    let _claim = claim_output_file(&args.out, "--out", &inputs)?;
+    let _claim = claim_output_file(&args.out, "--out", &inputs, &["txt", "list"])?;
     let device = args.backend.device(false)?;
     let trained = TrainedPolicy::load(&args.checkpoint, &device)?;
     let dataset = args.data.load()?;

@@ -70,7 +70,7 @@ pub fn run(command: MapCommand) -> Result<()> {
             Ok(())
         }
         MapCommand::Export { source, out } => {
-            let _claim = claim_output_file(&out, "--out", &source.inputs())?;
+            let _claim = claim_output_file(&out, "--out", &source.inputs(), &["xodr"])?;
             let map = source.load()?;
             let od = map.opendrive().ok_or_else(|| {
                 Error::InvalidArgument(format!("{} is not an OpenDRIVE map", map.source()))

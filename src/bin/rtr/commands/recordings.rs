@@ -58,7 +58,7 @@ pub fn run(command: RecordingsCommand) -> Result<()> {
         values,
         out,
     } = command;
-    let _claim = claim_output_file(&out, "--out", &Inputs::new())?;
+    let _claim = claim_output_file(&out, "--out", &Inputs::new(), &["csv"])?;
     let mut config = match effect.as_str() {
         "none" => GeneratorConfig::with_effect(None, seed),
         name => match (Effect::from_name(name), Uncatalogued::typical(name)) {
