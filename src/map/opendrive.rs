@@ -323,6 +323,42 @@ impl LaneSection {
         self.lanes().find(|l| l.id == id)
     }
 
+    /// The lanes of this end section of a road joined across a road link to the `other`
+    /// road's end section, as (id here, id there): each lane's declared links (`successors`
+    /// at the road's end, `predecessors` at its start). Where no lane declares one, the lanes
+    /// continue into the other road's lanes on the same side of traffic: the same id when the
+    /// roads run the same way (`same_direction`: one's end meets the other's start), the
+    /// opposite id when they meet head-on.
+    pub fn links_across(
+        &self,
+        at_end: bool,
+        other: &LaneSection,
+        same_direction: bool,
+    ) -> Vec<(i32, i32)> {
+        let declared: Vec<(i32, i32)> = self
+            .lanes()
+            .flat_map(|lane| {
+                let ids = if at_end {
+                    &lane.successors
+                } else {
+                    &lane.predecessors
+                };
+                ids.iter().map(move |&to| (lane.id, to))
+            })
+            .collect();
+        if !declared.is_empty() {
+            return declared;
+        }
+        self.lanes()
+            .filter(|lane| lane.id != 0)
+            .map(|lane| {
+                let to = if same_direction { lane.id } else { -lane.id };
+                (lane.id, to)
+            })
+            .filter(|&(_, to)| other.lane(to).is_some())
+            .collect()
+    }
+
     /// The lanes of this section joined to those of the `next` one of the same road, as (id
     /// here, id there): each lane's declared successors, the lanes of `next` that declare a
     /// predecessor, and, where neither side declares a link, the lane with the same id.

@@ -171,20 +171,21 @@ fn road_joins(lk: &Lookup, joins: &mut Vec<Join>) -> Result<()> {
             let other = lk.road(&link.element_id, road, "link")?;
             let other_end = End::from(link.contact_point.unwrap_or(ContactPoint::Start));
             let own_section = lk.end_section(r, end);
-            let Some(k) = own_section else { continue };
-            for lane in road.lane_sections[k].lanes() {
-                let Some(la) = lk.lane(r, own_section, lane.id) else {
-                    continue;
-                };
-                let ids = if end == End::Start {
-                    &lane.predecessors
-                } else {
-                    &lane.successors
-                };
-                for &id in ids {
-                    if let Some(lb) = lk.lane(other, lk.end_section(other, other_end), id) {
-                        joins.push(((la, end), (lb, other_end)));
-                    }
+            let other_section = lk.end_section(other, other_end);
+            let (Some(k), Some(m)) = (own_section, other_section) else {
+                continue;
+            };
+            let links = road.lane_sections[k].links_across(
+                end == End::End,
+                &lk.od.roads[other].lane_sections[m],
+                end != other_end,
+            );
+            for (from, to) in links {
+                if let (Some(la), Some(lb)) = (
+                    lk.lane(r, own_section, from),
+                    lk.lane(other, other_section, to),
+                ) {
+                    joins.push(((la, end), (lb, other_end)));
                 }
             }
         }

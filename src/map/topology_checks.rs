@@ -555,23 +555,26 @@ fn linked_lane_edges_meet(od: &OpenDrive) -> Option<Problem> {
             } else {
                 0
             };
-            for lane in road.lane_sections[section].lanes().filter(|l| l.id != 0) {
-                let ids = if last {
-                    &lane.successors
-                } else {
-                    &lane.predecessors
-                };
-                for &to in ids {
-                    if let Some(message) = edge_gap(road, end, lane.id, other, other_end, to) {
-                        return Some(Problem {
-                            place: Place::Lane {
-                                road: road.id.clone(),
-                                section,
-                                lane: lane.id,
-                            },
-                            message,
-                        });
-                    }
+            let other_section = match other_end {
+                ContactPoint::Start => other.lane_sections.first(),
+                ContactPoint::End => other.lane_sections.last(),
+            };
+            let Some(other_section) = other_section else {
+                continue;
+            };
+            // The joins the lane topology makes (declared, else implied).
+            let links =
+                road.lane_sections[section].links_across(last, other_section, end != other_end);
+            for (from, to) in links.into_iter().filter(|&(from, _)| from != 0) {
+                if let Some(message) = edge_gap(road, end, from, other, other_end, to) {
+                    return Some(Problem {
+                        place: Place::Lane {
+                            road: road.id.clone(),
+                            section,
+                            lane: from,
+                        },
+                        message,
+                    });
                 }
             }
         }

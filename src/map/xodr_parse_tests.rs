@@ -475,6 +475,16 @@ fn linked_lanes_must_join_edge_to_edge() {
         "{message}"
     );
     assert_eq!(line, line_of(&text, "<lane id=\"-1\""));
+    // Without lane links the lanes continue into those of the same side of traffic: they
+    // must meet too.
+    let unlinked = document(&(straight("a", 0.0, 100.0, next, "") + &narrow));
+    let (_, message) = parse_err(&unlinked);
+    assert!(message.contains("edges 1.50 m apart"), "{message}");
+    parse_xodr(
+        &document(&(straight("a", 0.0, 100.0, next, "") + &straight("b", 100.0, 50.0, back, ""))),
+        "t",
+    )
+    .expect("same widths, no lane links");
 }
 
 #[test]
