@@ -268,8 +268,9 @@ pub fn list_folder(dir: &Path) -> Result<Vec<PathBuf>> {
 }
 
 /// The files under `dir` and its sub-folders, hidden ones (names starting with `.`) left out,
-/// each folder's in name order, a sub-folder's files where its name sorts. A folder reached twice (a link back to a folder above it) is refused by
-/// name rather than walked until the path is too long.
+/// each folder's in name order, a sub-folder's files where its name sorts. A folder reached
+/// twice (a link back to a folder above it) is refused by name rather than walked until the
+/// path is too long.
 pub fn files_in_tree(dir: &Path) -> Result<Vec<PathBuf>> {
     fn walk(dir: &Path, seen: &mut Vec<PathBuf>, out: &mut Vec<PathBuf>) -> Result<()> {
         let real = dir.canonicalize().map_err(|e| Error::io(dir, e))?;

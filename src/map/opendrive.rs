@@ -323,32 +323,41 @@ impl LaneSection {
         self.lanes().find(|l| l.id == id)
     }
 
-    /// The lanes of this end section of a road joined across a road link to the `other`
-    /// road's end section, as (id here, id there): each lane's declared links (`successors`
-    /// at the road's end, `predecessors` at its start). Where no lane declares one, the lanes
+    /// The lanes of this end section of a road (its last one when `at_end`) joined across a
+    /// road link to the `other` road's end section (its last when `other_at_end`), as (id
+    /// here, id there): the lane links either side declares toward the other (`successors` at
+    /// a road's end, `predecessors` at its start). Where neither declares one, the lanes
     /// continue into the other road's lanes on the same side of traffic: the same id when the
-    /// roads run the same way (`same_direction`: one's end meets the other's start), the
-    /// opposite id when they meet head-on.
+    /// roads run the same way (one's end meets the other's start), the opposite id when they
+    /// meet head-on. Pairs may repeat (declared on both sides).
     pub fn links_across(
         &self,
         at_end: bool,
         other: &LaneSection,
-        same_direction: bool,
+        other_at_end: bool,
     ) -> Vec<(i32, i32)> {
-        let declared: Vec<(i32, i32)> = self
-            .lanes()
-            .flat_map(|lane| {
-                let ids = if at_end {
-                    &lane.successors
-                } else {
-                    &lane.predecessors
-                };
-                ids.iter().map(move |&to| (lane.id, to))
-            })
-            .collect();
+        let toward = |lane: &Lane, end: bool| -> Vec<i32> {
+            if end {
+                lane.successors.clone()
+            } else {
+                lane.predecessors.clone()
+            }
+        };
+        let mut declared: Vec<(i32, i32)> = Vec::new();
+        for lane in self.lanes() {
+            declared.extend(toward(lane, at_end).into_iter().map(|to| (lane.id, to)));
+        }
+        for lane in other.lanes() {
+            declared.extend(
+                toward(lane, other_at_end)
+                    .into_iter()
+                    .map(|from| (from, lane.id)),
+            );
+        }
         if !declared.is_empty() {
             return declared;
         }
+        let same_direction = at_end != other_at_end;
         self.lanes()
             .filter(|lane| lane.id != 0)
             .map(|lane| {
@@ -382,6 +391,45 @@ impl LaneSection {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn section(lanes: &[(i32, &[i32], &[i32])]) -> LaneSection {
+        let lane = |&(id, predecessors, successors): &(i32, &[i32], &[i32])| Lane {
+            id,
+            kind: LaneType::Driving,
+            widths: Vec::new(),
+            road_marks: Vec::new(),
+            speeds: Vec::new(),
+            predecessors: predecessors.to_vec(),
+            successors: successors.to_vec(),
+        };
+        LaneSection {
+            s: 0.0,
+            left: lanes.iter().filter(|l| l.0 > 0).map(lane).collect(),
+            center: None,
+            right: lanes.iter().filter(|l| l.0 < 0).map(lane).collect(),
+        }
+    }
+
+    #[test]
+    fn lanes_join_across_a_road_link_as_declared_on_either_side_else_by_side_of_traffic() {
+        let plain = section(&[(-1, &[], &[]), (-2, &[], &[]), (1, &[], &[])]);
+        // Nothing declared: the same id one after the other, the opposite id head-on.
+        assert_eq!(
+            plain.links_across(true, &plain, false),
+            vec![(1, 1), (-1, -1), (-2, -2)]
+        );
+        assert_eq!(
+            plain.links_across(true, &plain, true),
+            vec![(1, -1), (-1, 1)]
+        );
+        // Declared on the other road only (its lane -1 starts from lane -2 here): that is
+        // the join, and no lane is joined by its id as well.
+        let shifted = section(&[(-1, &[-2], &[]), (-2, &[], &[])]);
+        assert_eq!(plain.links_across(true, &shifted, false), vec![(-2, -1)]);
+        // Declared here: used as declared.
+        let own = section(&[(-1, &[], &[-2]), (-2, &[], &[])]);
+        assert_eq!(own.links_across(true, &plain, false), vec![(-1, -2)]);
+    }
 
     #[test]
     fn record_at_picks_last_started_record() {

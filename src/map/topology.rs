@@ -136,7 +136,8 @@ pub(super) fn connect(od: &OpenDrive, lanes: &mut [Lane], source: &str) -> Resul
     Ok(connected)
 }
 
-/// Lane links between consecutive sections of a road ([`super::opendrive::LaneSection::links_to`]).
+/// Lane links between consecutive sections of a road
+/// ([`super::opendrive::LaneSection::links_to`]).
 fn section_joins(lk: &Lookup, joins: &mut Vec<Join>) {
     for (r, road) in lk.od.roads.iter().enumerate() {
         for pair in lk.sections[r].windows(2) {
@@ -151,6 +152,7 @@ fn section_joins(lk: &Lookup, joins: &mut Vec<Join>) {
     }
 }
 
+/// Road-to-road links, lane to lane ([`super::opendrive::LaneSection::links_across`]).
 fn road_joins(lk: &Lookup, joins: &mut Vec<Join>) -> Result<()> {
     for (r, road) in lk.od.roads.iter().enumerate() {
         for (link, end) in [(&road.predecessor, End::Start), (&road.successor, End::End)] {
@@ -178,7 +180,7 @@ fn road_joins(lk: &Lookup, joins: &mut Vec<Join>) -> Result<()> {
             let links = road.lane_sections[k].links_across(
                 end == End::End,
                 &lk.od.roads[other].lane_sections[m],
-                end != other_end,
+                other_end == End::End,
             );
             for (from, to) in links {
                 if let (Some(la), Some(lb)) = (

@@ -563,8 +563,11 @@ fn linked_lane_edges_meet(od: &OpenDrive) -> Option<Problem> {
                 continue;
             };
             // The joins the lane topology makes (declared, else implied).
-            let links =
-                road.lane_sections[section].links_across(last, other_section, end != other_end);
+            let links = road.lane_sections[section].links_across(
+                last,
+                other_section,
+                other_end == ContactPoint::End,
+            );
             for (from, to) in links.into_iter().filter(|&(from, _)| from != 0) {
                 if let Some(message) = edge_gap(road, end, from, other, other_end, to) {
                     return Some(Problem {

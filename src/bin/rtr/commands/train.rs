@@ -20,7 +20,8 @@ pub struct TrainArgs {
     /// Continue the run in OUT from its last checkpoint (same result as an uninterrupted run).
     #[arg(long)]
     resume: bool,
-    /// Physics terms from `rtr sim2real` (`dynamics.toml` in its `--out`), replacing the run file's `dynamics`.
+    /// Physics terms from `rtr sim2real` (`dynamics.toml` in its `--out`), replacing the run
+    /// file's `dynamics`.
     #[arg(long)]
     dynamics: Option<PathBuf>,
     /// Long-tail training scenarios: the folder `rtr scenarios generate --out` wrote (its
