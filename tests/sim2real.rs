@@ -627,3 +627,58 @@ fn time_constants_hold_under_other_rates_noise_and_command_timing() {
         }
     }
 }
+
+/// Sideslip's lateral offset leads the rear-axle path by `lr / v`, so a steering command that
+/// acts earlier than the reading assumes is fitted as extra rear-axle distance: commands
+/// sampled from a fast controller but read as held come out about `v T / 2` long. Read from
+/// the data (`auto`), they are read as sampled and the distance is within 10 %.
+#[test]
+fn sideslip_under_sampled_commands_is_not_fitted_long() {
+    use rtr::sim2real::{CommandTiming, TimingEvidence};
+    let mut config = GeneratorConfig::with_effect(Some(Effect::Sideslip), 5);
+    config.tracks = 16;
+    config.command_timing = CommandTiming::Sampled;
+    let recordings = generate(&config, &device());
+    let truth = typical(Effect::Sideslip)[0];
+    let fitted = |declared: Option<CommandTiming>| {
+        let options = Sim2RealOptions {
+            effects: vec![Effect::Sideslip],
+            discover: false,
+            command_timing: declared,
+            ..Sim2RealOptions::default()
+        };
+        let report = identify(&recordings, &options, &|_| {})
+            .expect("identification runs")
+            .report;
+        let summary = report.summary().join("\n");
+        let first = report
+            .findings
+            .first()
+            .unwrap_or_else(|| panic!("nothing found\n{summary}"));
+        assert_eq!(first.effect, Some(Effect::Sideslip), "{summary}");
+        (first.params["lr_m"], report, summary)
+    };
+    let (lr, report, summary) = fitted(None);
+    assert_eq!(
+        (
+            report.command_timing.reading,
+            report.command_timing.decided_by
+        ),
+        (CommandTiming::Sampled, TimingEvidence::HeldOutError),
+        "{summary}"
+    );
+    assert!(
+        (lr - truth).abs() <= 0.1 * truth,
+        "lr {lr}, truth {truth}\n{summary}"
+    );
+    let [low, high] = report.findings[0].params_interval["lr_m"];
+    assert!(
+        low <= truth && truth <= high,
+        "interval {low} .. {high}\n{summary}"
+    );
+    let (as_held, _, summary) = fitted(Some(CommandTiming::Held));
+    assert!(
+        as_held > 1.05 * truth,
+        "read as held: lr {as_held}\n{summary}"
+    );
+}

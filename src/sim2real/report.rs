@@ -262,8 +262,9 @@ pub struct Finding {
     pub params: BTreeMap<String, f64>,
     pub params_std_error: BTreeMap<String, f64>,
     /// About 95 %: two cluster-robust standard errors either side; times (lags, delays)
-    /// also +- a tenth of the sampling period ([`TIME_RESOLUTION_PERIODS`]); widened to the
-    /// other reading's value when the command timing was ambiguous.
+    /// also +- a tenth of the sampling period ([`TIME_RESOLUTION_PERIODS`]), and sideslip's
+    /// `lr` that time at the median speed; widened to the other reading's value when the
+    /// command timing was ambiguous.
     pub params_interval: BTreeMap<String, [f64; 2]>,
     /// Held-out error of the model with this and every earlier finding.
     pub heldout_pos_rmse_m: f64,
@@ -382,11 +383,7 @@ impl Report {
             findings: findings(
                 &selection.chosen,
                 &command_timing,
-                recordings
-                    .tracks
-                    .iter()
-                    .map(|t| t.period)
-                    .fold(0.0, f64::max),
+                Resolution::of(recordings, train),
             ),
             command_timing,
             baseline: Baseline {
@@ -569,12 +566,51 @@ fn candidate_results(selection: &Selection) -> Vec<CandidateResult> {
 /// (10 and 20 Hz logs, lags and delay); a tenth leaves a margin.
 pub const TIME_RESOLUTION_PERIODS: f64 = 0.1;
 
-/// One finding per kept model: what it added to the model before it. `period` is the
-/// coarsest sampling period of the recordings (s).
+/// What a simulator stepping once per sample cannot resolve, for the parameter intervals.
+#[derive(Debug, Clone, Copy)]
+struct Resolution {
+    /// The coarsest sampling period of the recordings (s).
+    period_s: f64,
+    /// The median speed at the training windows' starts (m/s).
+    speed_m_s: f64,
+}
+
+impl Resolution {
+    fn of(recordings: &Recordings, train: &[Window]) -> Self {
+        let mut speeds: Vec<f64> = train.iter().map(|w| w.initial[3]).collect();
+        speeds.sort_by(f64::total_cmp);
+        Self {
+            period_s: recordings
+                .tracks
+                .iter()
+                .map(|t| t.period)
+                .fold(0.0, f64::max),
+            speed_m_s: speeds.get(speeds.len() / 2).copied().unwrap_or(0.0),
+        }
+    }
+
+    /// The unresolved part of `effect`'s parameter `name`: for times (lags, delay) a tenth
+    /// of a period; for sideslip's `lr`, whose lateral offset leads the path by `lr / v`, the
+    /// same time as a length at the typical speed; nothing for the rest.
+    fn of_param(self, effect: Effect, name: &str) -> f64 {
+        let is_time = effect
+            .params()
+            .iter()
+            .any(|p| p.name == name && p.unit == "s");
+        let time = TIME_RESOLUTION_PERIODS * self.period_s;
+        match effect {
+            _ if is_time => time,
+            Effect::Sideslip => time * self.speed_m_s,
+            _ => 0.0,
+        }
+    }
+}
+
+/// One finding per kept model: what it added to the model before it.
 fn findings(
     chosen: &[(Evaluated, Comparison)],
     timing: &TimingDecision,
-    period: f64,
+    resolution: Resolution,
 ) -> Vec<Finding> {
     let mut previous: Option<&Fit> = None;
     chosen
@@ -586,7 +622,7 @@ fn findings(
             if added_discovered {
                 Finding::discovered(&e.fit, c)
             } else {
-                Finding::catalogue(&e.fit, c, timing, period)
+                Finding::catalogue(&e.fit, c, timing, resolution)
             }
         })
         .collect()
@@ -630,20 +666,16 @@ impl Finding {
     }
 
     /// The catalogue effect that `fit` added (its last).
-    fn catalogue(fit: &Fit, c: &Comparison, timing: &TimingDecision, period: f64) -> Self {
+    fn catalogue(
+        fit: &Fit,
+        c: &Comparison,
+        timing: &TimingDecision,
+        resolution: Resolution,
+    ) -> Self {
         let (_, effects) = estimates(fit);
         let (effect, params) = effects.last().cloned().expect("an effect");
         let interval = |name: &str, e: &Estimate| {
-            let is_time = effect
-                .params()
-                .iter()
-                .any(|p| p.name == name && p.unit == "s");
-            let resolution = if is_time {
-                TIME_RESOLUTION_PERIODS * period
-            } else {
-                0.0
-            };
-            let half_width = 2.0 * e.std_error + resolution;
+            let half_width = 2.0 * e.std_error + resolution.of_param(effect, name);
             let (mut low, mut high) = (e.value - half_width, e.value + half_width);
             if let Some(other) = timing.ambiguous_value(effect, name) {
                 (low, high) = (low.min(other), high.max(other));
