@@ -608,6 +608,18 @@ fn eval_prints_the_table_row_and_writes_the_documented_json() {
     assert!(!out.status.success() && err.contains("figures"), "{err}");
     assert_eq!(entries(&blocked), ["figures"], "nothing else was written");
     assert!(!entries(dir.path()).iter().any(|n| n.contains("staging")));
+    // Weights changed after training are not evaluated as the trained ones.
+    let policy = run.join("policy.bpk");
+    let mut bytes = std::fs::read(&policy).expect("policy");
+    let last = bytes.len() - 1;
+    bytes[last] ^= 1;
+    std::fs::write(&policy, bytes).expect("write");
+    let out = eval_into(&dir.path().join("tampered"));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("sha256") && err.contains("after training"),
+        "{err}"
+    );
 }
 
 /// The names in `dir`, sorted.
@@ -870,30 +882,57 @@ fn unwritable_outputs_are_refused_before_any_work() {
     assert_eq!(names, ["a-file"], "nothing else was written");
 }
 
-/// `scenarios generate` into a folder whose set folders hold files refuses before drawing:
-/// the loaders read every file of a set folder, so old scenarios would join the new set.
+/// `scenarios generate` into a folder whose set folders hold files it did not write refuses
+/// before drawing (the loaders read every file of a set folder, so they would join the new
+/// set); its own earlier set there is replaced whole, no scenario of it left behind.
 #[test]
-fn scenarios_are_not_generated_into_an_earlier_set() {
+fn scenarios_replace_their_own_earlier_set_and_nothing_else() {
     let dir = tempfile::tempdir().expect("temp dir");
+    let generate = |count: &str| {
+        rtr(&[
+            "scenarios",
+            "generate",
+            "--in-distribution",
+            count,
+            "--ood",
+            "0",
+            "--out",
+            dir.path().to_str().unwrap(),
+        ])
+    };
+    let files = |set: &str| {
+        std::fs::read_dir(dir.path().join(set))
+            .map(|entries| entries.count())
+            .unwrap_or(0)
+    };
+    let out = generate("6");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!((files("train"), files("eval")), (3, 3));
+    let out = generate("2");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(
+        (files("train"), files("eval")),
+        (1, 1),
+        "the earlier set is gone"
+    );
+
     let stale = dir.path().join("train").join("stale.json");
-    std::fs::create_dir_all(stale.parent().unwrap()).expect("mkdir");
     std::fs::write(&stale, "{}").expect("write");
-    let out = rtr(&[
-        "scenarios",
-        "generate",
-        "--in-distribution",
-        "2",
-        "--ood",
-        "0",
-        "--out",
-        dir.path().to_str().unwrap(),
-    ]);
+    let out = generate("4");
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
-        !out.status.success() && err.contains("--out") && err.contains("already holds files"),
+        !out.status.success() && err.contains("did not write") && err.contains("train"),
         "{err}"
     );
-    assert!(!dir.path().join("eval").exists(), "nothing written");
+    assert_eq!((files("train"), files("eval")), (2, 1), "nothing written");
 }
 
 /// Inputs that are not what their flag wants are refused naming the flag: a folder given as
@@ -946,15 +985,37 @@ fn misplaced_inputs_name_their_flag_or_field() {
         !out.status.success() && err.contains("data.curated") && err.contains("missing.txt"),
         "{err}"
     );
+    // Every path a run file names is checked before the data loads.
+    for (field, line) in [
+        ("dynamics", "dynamics = \"no_dynamics.toml\""),
+        ("init.policy", "[init]\npolicy = \"no_model\""),
+    ] {
+        std::fs::write(&run, format!("method = \"IL\"\n{line}\n")).expect("write");
+        let out = rtr(&[
+            "train",
+            "--config",
+            run.to_str().unwrap(),
+            "--out",
+            dir.path().join("out").to_str().unwrap(),
+            "--data",
+            dir.path().join("no_data").to_str().unwrap(),
+        ]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && err.contains(&format!("field `{field}`")),
+            "{field}: {err}"
+        );
+    }
 }
 
-/// A fresh run refused after its data loaded (here a missing dynamics file) leaves no run
-/// folder behind: nothing for a later `--resume` to trip over.
+/// A fresh run refused after its data loaded (here a dynamics file that is not one) leaves
+/// no run folder behind: nothing for a later `--resume` to trip over.
 #[test]
 fn a_refused_training_run_leaves_no_folder() {
     let dir = tempfile::tempdir().expect("temp dir");
     let run = dir.path().join("run");
     let missing = dir.path().join("nope_dynamics.toml");
+    std::fs::write(&missing, "[[terms]]\neffect = \"no_such_effect\"\n").expect("write");
     let out = rtr(&[
         "train",
         "--config",
@@ -1023,8 +1084,16 @@ fn model_average_writes_a_loadable_policy_and_refuses_mixed_runs() {
             .expect("JSON");
     assert_eq!(sources["sources"].as_array().map(Vec::len), Some(2));
 
+    // Run again, it replaces its own earlier average; a model folder is never replaced.
     let (ok, err) = average(&[il, &second_arg], &out);
-    assert!(!ok && err.contains("already holds"), "{err}");
+    assert!(ok, "{err}");
+    assert_eq!(read(&out.join("policy.bpk")), averaged);
+    let a_model = dir.path().join("a_model");
+    std::fs::create_dir(&a_model).expect("folder");
+    std::fs::write(a_model.join("policy.bpk"), b"weights").expect("policy written");
+    let (ok, err) = average(&[il, &second_arg], &a_model);
+    assert!(!ok && err.contains("a model or a training run"), "{err}");
+    assert_eq!(read(&a_model.join("policy.bpk")), b"weights");
     let other = dir.path().join("mixed");
     let (ok, err) = average(&[il, "models/rtr"], &other);
     assert!(!ok && err.contains("one run") && !other.exists(), "{err}");

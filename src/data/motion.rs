@@ -14,6 +14,9 @@ const SPEED_RATIO: std::ops::RangeInclusive<f64> = 0.67..=1.5;
 /// Largest median angle between the heading and the direction of travel (rad): slip angles
 /// are a few hundredths; degrees, a reversed heading or another convention are far above.
 const HEADING_MISMATCH: f64 = 0.5;
+/// Floor of the positions' speed in a ratio (m/s), so a standing vehicle recorded as moving
+/// gives a large ratio, not a division by zero.
+const MIN_SPEED_OF_POSITIONS: f64 = 0.01;
 /// Fewest moving steps that make a verdict: a vehicle standing or creeping is not judged.
 const MIN_STEPS: usize = 3;
 
@@ -42,7 +45,8 @@ impl std::fmt::Display for Mismatch {
             Mismatch::Speed { ratio, steps } => write!(
                 f,
                 "the recorded speed is {ratio:.2} times the speed of the positions (median over \
-                 {steps} moving steps): km/h or mph? expected m/s"
+                 {steps} moving steps): km/h or mph, or a wrong time step? expected m/s, and \
+                 positions that move as fast as the speed says"
             ),
             Mismatch::Heading { angle, steps } => write!(
                 f,
@@ -70,13 +74,17 @@ pub fn check(
         let j = k - lag;
         let (dx, dy) = (x[k] - x[j], y[k] - y[j]);
         let moved = dx.hypot(dy) / (lag as f64 * period);
-        if moved < MOVING {
+        let recorded: f64 = speed[j..=k].iter().sum::<f64>() / (lag + 1) as f64;
+        // Moving by either account: positions that barely move under recorded speeds say the
+        // period (or the speed) is wrong, and must be judged.
+        if moved < MOVING && recorded < MOVING {
             continue;
         }
-        let recorded: f64 = speed[j..=k].iter().sum::<f64>() / (lag + 1) as f64;
-        ratios.push(recorded / moved);
-        let diff = (heading[j + lag / 2] - dy.atan2(dx) + PI).rem_euclid(2.0 * PI) - PI;
-        angles.push(diff.abs());
+        ratios.push(recorded / moved.max(MIN_SPEED_OF_POSITIONS));
+        if moved >= MOVING {
+            let diff = (heading[j + lag / 2] - dy.atan2(dx) + PI).rem_euclid(2.0 * PI) - PI;
+            angles.push(diff.abs());
+        }
     }
     if ratios.len() < MIN_STEPS {
         return Ok(());
@@ -85,6 +93,9 @@ pub fn check(
     let ratio = median(&mut ratios);
     if !SPEED_RATIO.contains(&ratio) {
         return Err(Mismatch::Speed { ratio, steps });
+    }
+    if angles.len() < MIN_STEPS {
+        return Ok(());
     }
     let angle = median(&mut angles);
     if angle > HEADING_MISMATCH {
@@ -134,6 +145,21 @@ mod tests {
             check(0.1, &x, &y, &reversed, &speed),
             Err(Mismatch::Heading { angle, .. }) if (angle - PI).abs() < 1e-9
         ));
+    }
+
+    #[test]
+    fn a_wrong_period_is_named_whether_the_positions_seem_to_move_or_not() {
+        let (x, y, heading, speed) = track();
+        // Read every 0.9 s or 5 s, the positions move 9 or 50 times slower than recorded.
+        for period in [0.9, 5.0] {
+            assert!(
+                matches!(
+                    check(period, &x, &y, &heading, &speed),
+                    Err(Mismatch::Speed { ratio, .. }) if ratio > 5.0
+                ),
+                "{period}"
+            );
+        }
     }
 
     #[test]

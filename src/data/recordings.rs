@@ -184,6 +184,10 @@ pub struct Recordings {
     pub tracks: Vec<RecordedTrack>,
 }
 
+/// The longest header line read: far above any real one's, far below what would hold a
+/// whole binary file.
+const MAX_HEADER_BYTES: usize = 64 * 1024;
+
 impl Recordings {
     /// Reads and parses a recordings CSV file.
     pub fn load(path: &Path) -> Result<Self> {
@@ -200,6 +204,18 @@ impl Recordings {
                 "line 1",
                 format!(
                     "the file is empty; expected the header `{}` followed by data rows",
+                    expected_header()
+                ),
+            ));
+        }
+        let header_len = text.find('\n').unwrap_or(text.len());
+        if header_len > MAX_HEADER_BYTES {
+            return Err(Error::invalid(
+                source,
+                "line 1",
+                format!(
+                    "the first line is {header_len} bytes long; expected the header `{}` (a \
+                     recordings CSV's header is a few dozen bytes)",
                     expected_header()
                 ),
             ));

@@ -42,7 +42,10 @@ const PERIOD_TOLERANCE: f64 = 0.05;
 
 /// Refuses the first track that repeats another (see the module documentation).
 pub(super) fn refuse_repeated_tracks(source: &str, tracks: &[RecordedTrack]) -> Result<()> {
-    let Some(repeat) = whole_copy(tracks).or_else(|| partial_copy(tracks)) else {
+    let Some(repeat) = whole_copy(tracks)
+        .or_else(|| partial_copy(tracks))
+        .or_else(|| shared_positions(tracks))
+    else {
         return Ok(());
     };
     Err(Error::invalid(
@@ -209,6 +212,53 @@ fn partial_copy(tracks: &[RecordedTrack]) -> Option<Repeat> {
     None
 }
 
+/// Two tracks that pass through the very same recorded positions (to the millimetre, in
+/// place) at [`PARTIAL_COPY_SAMPLES`] samples or more, over more than [`STANDING_M`]: one
+/// vehicle's samples under two ids, whatever their order (a track split in two that overlap,
+/// a copy played backwards). Two vehicles never share ten positions to the millimetre.
+fn shared_positions(tracks: &[RecordedTrack]) -> Option<Repeat> {
+    use std::collections::{BTreeMap, HashMap};
+    let key = |x: f64, y: f64| {
+        (
+            (x / SAME_OFFSET_M).round() as i64,
+            (y / SAME_OFFSET_M).round() as i64,
+        )
+    };
+    let mut owner: HashMap<(i64, i64), usize> = HashMap::new();
+    // (original, copy) -> the copy's samples found in the original.
+    let mut shared: BTreeMap<(usize, usize), Vec<usize>> = BTreeMap::new();
+    for (c, track) in tracks.iter().enumerate() {
+        for j in 0..track.len() {
+            match owner.entry(key(track.x[j], track.y[j])) {
+                std::collections::hash_map::Entry::Occupied(o) if *o.get() != c => {
+                    shared.entry((*o.get(), c)).or_default().push(j);
+                }
+                std::collections::hash_map::Entry::Occupied(_) => {}
+                std::collections::hash_map::Entry::Vacant(v) => {
+                    v.insert(c);
+                }
+            }
+        }
+    }
+    shared.into_iter().find_map(|((original, copy), samples)| {
+        let track = &tracks[copy];
+        let spread = samples
+            .iter()
+            .map(|&j| distance(track, samples[0], j))
+            .fold(0.0, f64::max);
+        (samples.len() >= PARTIAL_COPY_SAMPLES && spread > STANDING_M).then(|| Repeat {
+            copy,
+            original,
+            how: format!(
+                "{} of its samples at that track's very positions, its samples {}-{}",
+                samples.len(),
+                samples[0] + 1,
+                samples[samples.len() - 1] + 1
+            ),
+        })
+    })
+}
+
 /// The thinning `k` and first sample of `original` that would put the copy's sample `anchor`
 /// on the original's sample `at`, when the copy's period and length allow it.
 fn alignment(
@@ -273,6 +323,7 @@ fn copied(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::f64::consts::PI;
 
     /// A braking and turning track of `n` samples at `period`.
     fn manoeuvring(id: &str, n: usize, period: f64) -> RecordedTrack {
@@ -391,8 +442,34 @@ mod tests {
             cruise.x[k] = 2.5 * k as f64;
             cruise.y[k] = 0.0;
         }
+        // The second car drives the same line, never through the first one's very positions.
         let mut piece = cut(&cruise, 10, 40);
         piece.id = "e".into();
+        for x in &mut piece.x {
+            *x += 0.37;
+        }
         refuse_repeated_tracks("rec.csv", &[cruise, piece]).expect("two cruising cars");
+    }
+
+    #[test]
+    fn two_tracks_through_the_same_positions_are_one_vehicle() {
+        let a = manoeuvring("a", 120, 0.1);
+        // Split in two that overlap by 30 samples (40-69), the second part renamed.
+        let (first, mut second) = (cut(&a, 0, 70), cut(&a, 40, 119));
+        second.id = "b".into();
+        let message = refused(&[first, second]);
+        assert!(
+            message.contains("30 of its samples at that track's very positions"),
+            "{message}"
+        );
+        // Played backwards (headings turned round, so no sample matches its original's).
+        let mut backwards = a.clone();
+        backwards.id = "b".into();
+        for channel in [&mut backwards.x, &mut backwards.y, &mut backwards.speed] {
+            channel.reverse();
+        }
+        backwards.heading = a.heading.iter().rev().map(|h| wrap_angle(h + PI)).collect();
+        let message = refused(&[a, backwards]);
+        assert!(message.contains("120 of its samples"), "{message}");
     }
 }

@@ -12,17 +12,13 @@ use super::features::Feature;
 use super::metrics::Metric;
 use super::report::MethodResult;
 use super::sets::EvalSet;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::io::atomic_write_with;
-use crate::render::{RenderOptions, render_scene};
+use crate::render::{RenderOptions, drawing_error, render_scene};
 use crate::scene::{AgentRole, Scene};
 use crate::train::CurveRow;
 
 type DrawResult = std::result::Result<(), Box<dyn std::error::Error>>;
-
-fn plot_error(path: &Path, e: impl std::fmt::Display) -> Error {
-    Error::InvalidArgument(format!("cannot draw {}: {e}", path.display()))
-}
 
 const PALETTE: [RGBColor; 8] = [
     RGBColor(31, 119, 180),
@@ -89,7 +85,7 @@ pub fn pareto(dir: &Path, methods: &[MethodResult], realism: Metric) -> Result<O
     }
     let path = dir.join(format!("pareto_{}.svg", realism.key()));
     atomic_write_with(&path, |tmp| {
-        draw_pareto(tmp, &points, realism).map_err(|e| plot_error(&path, e))
+        draw_pareto(tmp, &points, realism).map_err(|e| drawing_error(&path, e))
     })?;
     Ok(Some(path))
 }
@@ -181,7 +177,7 @@ pub fn histograms(dir: &Path, method: &MethodResult) -> Result<Option<PathBuf>> 
     let name = file_stem(&method.method);
     let path = dir.join(format!("histograms_{name}.svg"));
     atomic_write_with(&path, |tmp| {
-        draw_histograms(tmp, method, nominal).map_err(|e| plot_error(&path, e))
+        draw_histograms(tmp, method, nominal).map_err(|e| drawing_error(&path, e))
     })?;
     Ok(Some(path))
 }
@@ -253,7 +249,7 @@ pub fn training_curves(dir: &Path, runs: &[(String, Vec<CurveRow>)]) -> Result<O
     }
     let path = dir.join("training_curves.svg");
     atomic_write_with(&path, |tmp| {
-        draw_curves(tmp, runs).map_err(|e| plot_error(&path, e))
+        draw_curves(tmp, runs).map_err(|e| drawing_error(&path, e))
     })?;
     Ok(Some(path))
 }

@@ -53,9 +53,11 @@ fn locate(path: &Path) -> Result<(PathBuf, PathBuf)> {
     }
     // A checkpoint folder sits two levels below its run's config.
     let candidates = [dir.join(CONFIG), dir.join("../..").join(CONFIG)];
+    // The first one there at all: a `config.toml` that is a folder or a FIFO is named as
+    // such, not reported missing.
     let config = candidates
         .iter()
-        .find(|c| c.is_file())
+        .find(|c| c.symlink_metadata().is_ok())
         .cloned()
         .ok_or_else(|| {
             Error::InvalidArgument(format!(
@@ -64,7 +66,37 @@ fn locate(path: &Path) -> Result<(PathBuf, PathBuf)> {
                 path.display()
             ))
         })?;
+    if let Some(why) = crate::io::not_regular(&config) {
+        return Err(Error::invalid(config.display().to_string(), "file", why));
+    }
     Ok((policy, config))
+}
+
+/// `inputs` with each policy of `paths` (given with `flag`) and every file its run reads
+/// (its run file's `dynamics`, `data.curated`, ...): an output written over one of those
+/// would change, or stop, that run's own `--resume`. A path that is no trained policy adds
+/// itself alone (its loading names what is wrong).
+pub fn with_run_inputs<P: AsRef<Path>>(
+    inputs: crate::io::Inputs,
+    flag: &str,
+    paths: impl IntoIterator<Item = P>,
+) -> crate::io::Inputs {
+    paths.into_iter().fold(inputs, |inputs, path| {
+        let path = path.as_ref();
+        let read = locate(path).ok().and_then(|(_, config_path)| {
+            let text = crate::io::read_text(&config_path, crate::io::Format::Settings).ok()?;
+            TrainConfig::from_toml_str(&text, &config_path.display().to_string()).ok()
+        });
+        let run_files = read.map(|c| c.input_paths()).unwrap_or_default();
+        run_files
+            .into_iter()
+            .fold(inputs.with(flag, path), |inputs, (field, file)| {
+                inputs.with(
+                    &format!("{flag} {}'s run file's `{field}`", path.display()),
+                    file,
+                )
+            })
+    })
 }
 
 impl TrainedPolicy {
@@ -82,6 +114,7 @@ impl TrainedPolicy {
         let recorded = recorded_state(&policy_path, &config_path)?;
         if let Some((dir, state)) = &recorded {
             check_recorded_config(dir, state, &config, &config_path)?;
+            crate::train::checkpoint::verify_policy(dir, state, &policy_path)?;
         }
         // Evaluation needs neither the frozen KL reference nor the training data.
         config.reference = None;
@@ -204,6 +237,13 @@ mod tests {
         std::fs::write(dir.path().join(POLICY), b"x").unwrap();
         let e = locate(dir.path()).unwrap_err().to_string();
         assert!(e.contains("no config.toml"), "{e}");
+        std::fs::create_dir(dir.path().join(CONFIG)).unwrap();
+        let e = locate(dir.path()).unwrap_err().to_string();
+        assert!(
+            e.contains("config.toml") && e.contains("is a folder"),
+            "{e}"
+        );
+        std::fs::remove_dir(dir.path().join(CONFIG)).unwrap();
         std::fs::write(dir.path().join(CONFIG), b"method = \"IL\"").unwrap();
         let (p, c) = locate(dir.path()).unwrap();
         assert_eq!(p, dir.path().join(POLICY));

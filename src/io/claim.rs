@@ -117,8 +117,9 @@ fn refuse_inside_a_claim(target: &Path, shown: &Path, flag: &str) -> Result<()> 
         // Only a lock file someone holds counts: a killed writer's is free.
         if let Some(holder) = live_holder(&parent.join(lock_name(folder))) {
             return Err(Error::InvalidArgument(format!(
-                "{flag} {} lies inside {}, which another rtr process is writing ({holder}); it \
-                 replaces that folder whole when it ends: wait for it or choose another {flag}",
+                "{flag} {} lies inside {}, which another rtr process is writing ({holder}); \
+                 what is written inside it meanwhile would be lost or mixed into that \
+                 process's results: wait for it to end or choose another {flag}",
                 shown.display(),
                 folder.display(),
             )));
@@ -325,7 +326,40 @@ fn lock(target: &Path, shown: &Path, flag: &str) -> Result<OutputClaim> {
             .set_len(0)
             .and_then(|()| file.write_all(holder.as_bytes()));
         held_here().push(path.clone());
+        remove_stale_locks(parent);
         return Ok(OutputClaim { lock: file, path });
+    }
+}
+
+/// Removes the lock files in `folder` that no process holds: what a writer ended by a signal
+/// (Ctrl-C) left. Each is removed while locked here, as its own holder would on release, so
+/// a process that opened it meanwhile notices and takes a fresh one.
+fn remove_stale_locks(folder: &Path) {
+    let Ok(entries) = std::fs::read_dir(folder) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let path = entry.path();
+        let is_lock = entry
+            .file_name()
+            .to_str()
+            .is_some_and(|n| n.starts_with(LOCK_PREFIX));
+        if !is_lock || held_here().iter().any(|p| p == &path) {
+            continue;
+        }
+        let Ok(file) = std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .open(&path)
+        else {
+            continue;
+        };
+        if file.try_lock().is_ok() {
+            if same_file(&file, &path) {
+                let _ = std::fs::remove_file(&path);
+            }
+            let _ = file.unlock();
+        }
     }
 }
 
@@ -404,6 +438,22 @@ mod tests {
         let err =
             claim_output_file(&file, "--report", &Inputs::new(), &["json"]).expect_err("twice");
         assert!(err.to_string().contains("another rtr process"), "{err}");
+    }
+
+    #[test]
+    fn a_lock_left_by_a_killed_writer_is_removed_by_the_next_claim_beside_it() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let stale = dir.path().join(".rtr-lock-killed");
+        std::fs::write(&stale, "pid 1: rtr eval").expect("write");
+        let first = claim_output_folder(&dir.path().join("a"), "--out", &Inputs::new())
+            .expect("first claim");
+        assert!(!stale.exists(), "nobody held it");
+        let _second = claim_output_folder(&dir.path().join("b"), "--out", &Inputs::new())
+            .expect("second claim");
+        let held = dir.path().join(".rtr-lock-a");
+        assert!(held.exists(), "a held lock stays");
+        drop(first);
+        assert!(!held.exists());
     }
 
     #[test]

@@ -51,6 +51,26 @@ pub fn write_stderr(text: &str) {
     let _ = std::io::stderr().lock().write_all(text.as_bytes());
 }
 
+/// The most characters of a message shown: one that quotes a huge input (a header line of
+/// hundreds of megabytes, a run-file value) keeps its beginning and end.
+const MAX_MESSAGE_CHARS: usize = 1200;
+
+/// `message`, cut in the middle when longer than [`MAX_MESSAGE_CHARS`], saying how much was
+/// left out.
+pub fn bounded(message: &str) -> String {
+    let chars = message.chars().count();
+    if chars <= MAX_MESSAGE_CHARS {
+        return message.to_string();
+    }
+    let head: String = message.chars().take(MAX_MESSAGE_CHARS * 2 / 3).collect();
+    let tail: String = message
+        .chars()
+        .skip(chars - MAX_MESSAGE_CHARS / 3)
+        .collect();
+    let left_out = chars - MAX_MESSAGE_CHARS * 2 / 3 - MAX_MESSAGE_CHARS / 3;
+    format!("{head}[... {left_out} characters left out ...]{tail}")
+}
+
 /// `println!` to standard output through [`write_stdout`]; evaluates to `Result<()>`.
 #[macro_export]
 macro_rules! outln {
@@ -79,4 +99,22 @@ macro_rules! errln {
     ($($arg:tt)*) => {
         $crate::io::console::write_stderr(&format!("{}\n", format_args!($($arg)*)))
     };
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_long_message_keeps_its_ends_and_says_what_was_cut() {
+        assert_eq!(bounded("short"), "short");
+        let long = format!("start {} end", "Q".repeat(50_000));
+        let shown = bounded(&long);
+        assert!(
+            shown.starts_with("start QQ") && shown.ends_with("QQ end"),
+            "{shown}"
+        );
+        assert!(shown.contains("characters left out"), "{shown}");
+        assert!(shown.chars().count() < MAX_MESSAGE_CHARS + 60);
+    }
 }

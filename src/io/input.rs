@@ -65,6 +65,7 @@ impl Format {
 /// path, a FIFO or a device is refused naming the option (before any work) rather than
 /// blocking, filling memory or failing with the operating system's bare message.
 pub fn check_input_file(path: &Path, flag: &str) -> Result<()> {
+    remember_flag(path, flag);
     let why = match path.metadata() {
         Ok(m) if m.is_file() => return Ok(()),
         Ok(m) if m.is_dir() => "is a folder; expected a file".to_string(),
@@ -82,6 +83,7 @@ pub fn check_input_file(path: &Path, flag: &str) -> Result<()> {
 /// message), refusing a file, a FIFO, a device, a dangling link or a missing path by the
 /// option's name rather than with the operating system's bare "Not a directory".
 pub fn check_input_folder(path: &Path, flag: &str, expected: &str) -> Result<()> {
+    remember_flag(path, flag);
     let why = match path.metadata() {
         Ok(m) if m.is_dir() => return Ok(()),
         Ok(m) => format!("is {}", kind_of(&m)),
@@ -99,6 +101,7 @@ pub fn check_input_folder(path: &Path, flag: &str, expected: &str) -> Result<()>
 /// run folder, a scenario set), refusing a FIFO, a device, a dangling link or a missing path
 /// by the option's name.
 pub fn check_input_path(path: &Path, flag: &str) -> Result<()> {
+    remember_flag(path, flag);
     match path.metadata() {
         Ok(m) if m.is_dir() => Ok(()),
         _ => check_input_file(path, flag),
@@ -179,6 +182,35 @@ pub(super) fn kind_of(metadata: &std::fs::Metadata) -> &'static str {
     "not a regular file"
 }
 
+/// The inputs checked so far with the flag that gave each, so that an error found later,
+/// reading one of them or a file inside one, names the flag too.
+fn given() -> std::sync::MutexGuard<'static, Vec<(std::path::PathBuf, String)>> {
+    static GIVEN: std::sync::Mutex<Vec<(std::path::PathBuf, String)>> =
+        std::sync::Mutex::new(Vec::new());
+    GIVEN
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
+fn remember_flag(path: &Path, flag: &str) {
+    given().push((path.to_path_buf(), flag.to_string()));
+}
+
+/// `path` as an error names it: with the flag that gave it (or the folder holding it), when
+/// a command checked it as an input.
+fn named(path: &Path) -> String {
+    let given = given();
+    let flag = given
+        .iter()
+        .rev()
+        .find(|(p, _)| path.starts_with(p))
+        .map(|(_, flag)| flag.clone());
+    match flag {
+        Some(flag) => format!("{} (given with {flag})", path.display()),
+        None => path.display().to_string(),
+    }
+}
+
 /// The whole of the regular file `path`, refused if larger than `format` allows.
 pub fn read_bytes(path: &Path, format: Format) -> Result<Vec<u8>> {
     let file = open_regular(path)?;
@@ -251,7 +283,7 @@ fn too_large(format: Format) -> std::io::Error {
 /// other failure an I/O error on the path.
 pub fn read_error(path: &Path, e: std::io::Error) -> Error {
     if e.kind() == std::io::ErrorKind::FileTooLarge {
-        Error::invalid(path.display().to_string(), "size", e.to_string())
+        Error::invalid(named(path), "size", e.to_string())
     } else {
         Error::io(path, e)
     }
@@ -375,6 +407,19 @@ mod tests {
             .expect_err("endless stream");
         assert_eq!(err.kind(), std::io::ErrorKind::FileTooLarge);
         assert!(err.to_string().contains("settings"), "{err}");
+    }
+
+    #[test]
+    fn a_file_too_large_is_named_with_its_flag() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let big = dir.path().join("big.toml");
+        let file = std::fs::File::create(&big).expect("create");
+        file.set_len(Format::Settings.limit() + 1).expect("sparse");
+        check_input_file(&big, "--config").expect("a regular file");
+        let err = read_text(&big, Format::Settings)
+            .expect_err("too large")
+            .to_string();
+        assert!(err.contains("given with --config"), "{err}");
     }
 
     #[test]

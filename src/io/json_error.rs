@@ -14,7 +14,12 @@ pub fn json_error(source: &str, text: Option<&str>, e: &serde_json::Error) -> Er
     if message.starts_with("expected value") {
         message.push_str(" (a number, string, array or object; JSON has no NaN or Infinity)");
     }
-    if let Some(key) = text.and_then(|t| key_before(t, e.line(), e.column())) {
+    // A field missing, unknown or repeated is the object's fault, and the message names the
+    // field; the key before the position belongs to a value read without fault.
+    let about_a_field = ["missing field", "unknown field", "duplicate field"]
+        .iter()
+        .any(|p| message.starts_with(p));
+    if !about_a_field && let Some(key) = text.and_then(|t| key_before(t, e.line(), e.column())) {
         message = format!("`{key}`: {message}");
     }
     Error::Parse {
@@ -47,6 +52,24 @@ mod tests {
         assert!(shown.starts_with("s.json: line 2, column"), "{shown}");
         assert!(shown.contains("`dt`: invalid type"), "{shown}");
         assert_eq!(shown.matches("line 2").count(), 1, "{shown}");
+        #[derive(Debug, serde::Deserialize)]
+        #[serde(deny_unknown_fields)]
+        #[allow(dead_code)]
+        struct Two {
+            index: usize,
+            description: String,
+        }
+        for (text, expected) in [
+            (r#"{"index": 1, "bogus": 2}"#, "unknown field `bogus`"),
+            (r#"{"index": 1}"#, "missing field `description`"),
+        ] {
+            let e = serde_json::from_str::<Two>(text).expect_err("refused");
+            let shown = json_error("c.json", Some(text), &e).to_string();
+            assert!(
+                shown.contains(expected) && !shown.contains("`index`: "),
+                "{shown}"
+            );
+        }
         let e = serde_json::from_str::<Vec<f64>>("[1, NaN]").expect_err("no NaN");
         let shown = json_error("v.json", None, &e).to_string();
         assert!(shown.contains("JSON has no NaN"), "{shown}");

@@ -88,7 +88,12 @@ pub fn atomic_write_with(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -
     create_folder(folder)?;
     let extension = path.extension().and_then(|e| e.to_str());
     let tmp = temp_name(folder, "tmp", extension);
+    // A failure names the file the user asked for, not the temporary beside it.
     let result = write(&tmp)
+        .map_err(|e| match e {
+            Error::Io { path: at, source } if at == tmp => Error::io(path, source),
+            other => other,
+        })
         .and_then(|()| check_written(&tmp, path))
         .and_then(|()| std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e)));
     if result.is_err() {
@@ -188,6 +193,19 @@ pub fn create_file(path: &Path) -> Result<std::fs::File> {
     std::fs::File::create(path).map_err(|e| Error::io(path, e))
 }
 
+/// Whether `path` is, or links to, a file descriptor of this process (`/dev/stdout`,
+/// `/dev/fd/1`, `/proc/self/fd/1`): a process-specific alias whose target cannot be replaced.
+fn names_an_open_stream(path: &Path) -> bool {
+    let is_stream = |p: &Path| {
+        let p = std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+        ["/dev/fd", "/dev/stdin", "/dev/stdout", "/dev/stderr"]
+            .iter()
+            .any(|prefix| p.starts_with(prefix))
+            || (p.starts_with("/proc") && p.components().any(|c| c.as_os_str() == "fd"))
+    };
+    is_stream(path) || path.read_link().is_ok_and(|target| is_stream(&target))
+}
+
 /// What an output path must be.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) enum OutputKind {
@@ -213,6 +231,13 @@ pub(super) fn check_output(path: &Path, kind: OutputKind, flag: &str) -> Result<
             "its name is {} bytes long; file systems allow at most {MAX_NAME_BYTES}",
             name.len()
         ));
+    }
+    if names_an_open_stream(path) {
+        return fail(
+            "names one of the command's open streams (/dev/fd, /dev/stdout, /proc/*/fd), not \
+             a file: rtr writes a new file by name and renames it into place; give a file path"
+                .into(),
+        );
     }
     if let (Err(e), Ok(_)) = (path.metadata(), path.symlink_metadata()) {
         return fail(format!(
@@ -289,6 +314,16 @@ pub(super) fn check_output(path: &Path, kind: OutputKind, flag: &str) -> Result<
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_open_stream_is_no_output() {
+        for path in ["/dev/stdout", "/dev/fd/1", "/proc/self/fd/1"] {
+            let e = check_output(Path::new(path), OutputKind::File, "--out")
+                .expect_err("a stream")
+                .to_string();
+            assert!(e.contains("open streams"), "{e}");
+        }
+    }
 
     #[test]
     fn failed_write_leaves_the_old_file() {

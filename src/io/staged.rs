@@ -65,6 +65,36 @@ impl StagedFolder {
         }
     }
 
+    /// Runs `write` on the staging folder; an error it returns names the file where it will
+    /// land (`out/table.md`), not the hidden staging name the user never sees.
+    pub fn fill<T>(&self, write: impl FnOnce(&Path) -> Result<T>) -> Result<T> {
+        write(&self.staging).map_err(|e| self.relocated(e))
+    }
+
+    fn relocated(&self, error: Error) -> Error {
+        let staging = self.staging.display().to_string();
+        let target = self.target.display().to_string();
+        match error {
+            Error::Io { path, source } => Error::Io {
+                path: self.final_path(&path),
+                source,
+            },
+            Error::InvalidArgument(message) => {
+                Error::InvalidArgument(message.replace(&staging, &target))
+            }
+            Error::InvalidData {
+                source_name,
+                place,
+                message,
+            } => Error::InvalidData {
+                source_name: source_name.replace(&staging, &target),
+                place,
+                message: message.replace(&staging, &target),
+            },
+            other => other,
+        }
+    }
+
     /// Moves everything staged into the target folder and records it there as rtr's result
     /// set ([`OWN_FILES`]); the files of rtr's earlier set that the new one lacks (an earlier
     /// run's figures) are removed, and anything else in the folder is left alone. Refuses,
@@ -411,6 +441,30 @@ mod tests {
             Err(Error::InvalidArgument("a figure failed".into()))
         })();
         assert!(result.is_err());
+        assert!(names(root.path()).is_empty(), "{:?}", names(root.path()));
+    }
+
+    #[test]
+    fn an_error_while_filling_names_where_the_file_lands() {
+        let root = tempfile::tempdir().expect("temp dir");
+        let target = root.path().join("out");
+        let staged = StagedFolder::new(&target, "rtr test").expect("stage");
+        let full = || std::io::Error::from_raw_os_error(libc::ENOSPC);
+        let err = staged
+            .fill(|dir| -> Result<()> { Err(Error::io(dir.join("figures/a.svg"), full())) })
+            .expect_err("failed")
+            .to_string();
+        let expected = target.join("figures/a.svg").display().to_string();
+        assert!(err.starts_with(&expected), "{err}");
+        let err = staged
+            .fill(|dir| -> Result<()> {
+                Err(Error::InvalidArgument(format!("{} is bad", dir.display())))
+            })
+            .expect_err("failed")
+            .to_string();
+        assert!(!err.contains(".rtr-"), "{err}");
+        assert!(err.contains(&target.display().to_string()), "{err}");
+        drop(staged);
         assert!(names(root.path()).is_empty(), "{:?}", names(root.path()));
     }
 

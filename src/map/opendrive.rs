@@ -193,7 +193,43 @@ const LANE_TYPE_NAMES: [(LaneType, &str); 15] = [
     (LaneType::ConnectingRamp, "connectingRamp"),
 ];
 
+/// The other lane types of OpenDRIVE 1.4 to 1.8, which rtr keeps verbatim as
+/// [`LaneType::Other`] (none of them is driven).
+pub const OTHER_LANE_TYPES: [&str; 16] = [
+    "bidirectional",
+    "special1",
+    "special2",
+    "special3",
+    "roadWorks",
+    "tram",
+    "rail",
+    "bus",
+    "taxi",
+    "HOV",
+    "mwyEntry",
+    "mwyExit",
+    "walking",
+    "slipLane",
+    "curb",
+    "shared",
+];
+
 impl LaneType {
+    /// Whether `name` is a lane type of the OpenDRIVE standard (a misspelt one would turn a
+    /// driving lane into something else in silence).
+    pub fn is_standard(name: &str) -> bool {
+        LANE_TYPE_NAMES.iter().any(|(_, n)| *n == name) || OTHER_LANE_TYPES.contains(&name)
+    }
+
+    /// The standard's names, for messages.
+    pub fn standard_names() -> Vec<&'static str> {
+        LANE_TYPE_NAMES
+            .iter()
+            .map(|(_, n)| *n)
+            .chain(OTHER_LANE_TYPES)
+            .collect()
+    }
+
     /// OpenDRIVE spelling; anything unknown is kept verbatim.
     pub fn from_name(name: &str) -> LaneType {
         LANE_TYPE_NAMES

@@ -410,6 +410,39 @@ impl Ctx<'_, '_> {
         Ok(Some(speed))
     }
 
+    /// The road's `<planView>`: its geometries, in increasing s and chained end to start.
+    fn plan_view(&self, node: Node, road: &mut Road) -> Result<()> {
+        let plan_view = element(node, "planView")
+            .ok_or_else(|| self.err(node, format!("road {} has no <planView>", road.id)))?;
+        for g in elements(plan_view, "geometry") {
+            let geometry = self.geometry(g)?;
+            // The standard lists them in increasing s; a file that does not was written
+            // wrong, and sorting would hide which record is.
+            if let Some(previous) = road.geometries.last()
+                && geometry.s <= previous.s
+            {
+                return Err(self.err(
+                    g,
+                    format!(
+                        "road {}: <geometry> at s = {} comes after the previous one, at s = \
+                         {}; expected geometries in increasing s",
+                        road.id, geometry.s, previous.s
+                    ),
+                ));
+            }
+            road.geometries.push(geometry);
+        }
+        if road.geometries.is_empty() {
+            return Err(self.err(
+                plan_view,
+                format!("road {}: <planView> has no <geometry>", road.id),
+            ));
+        }
+        sort_by_s(&mut road.geometries, |g| g.s);
+        self.check_plan_view(plan_view, road)?;
+        Ok(())
+    }
+
     fn road(&self, node: Node) -> Result<Road> {
         let id = self.req_str(node, "id")?.to_string();
         let junction = match node.attribute("junction").map(str::trim) {
@@ -456,19 +489,7 @@ impl Ctx<'_, '_> {
             });
         }
         sort_by_s(&mut road.types, |t| t.s);
-        let plan_view = element(node, "planView")
-            .ok_or_else(|| self.err(node, format!("road {} has no <planView>", road.id)))?;
-        for g in elements(plan_view, "geometry") {
-            road.geometries.push(self.geometry(g)?);
-        }
-        if road.geometries.is_empty() {
-            return Err(self.err(
-                plan_view,
-                format!("road {}: <planView> has no <geometry>", road.id),
-            ));
-        }
-        sort_by_s(&mut road.geometries, |g| g.s);
-        self.check_plan_view(plan_view, &road)?;
+        self.plan_view(node, &mut road)?;
         let lanes = element(node, "lanes")
             .ok_or_else(|| self.err(node, format!("road {} has no <lanes>", road.id)))?;
         self.lane_offsets(lanes, &mut road)?;
@@ -506,6 +527,18 @@ impl Ctx<'_, '_> {
             return Err(self.err(
                 lanes,
                 format!("road {}: <lanes> has no <laneSection>", road.id),
+            ));
+        }
+        // The first section starts the road: before it, the road would have no lanes.
+        let first = road.lane_sections[0].s;
+        if first > chain_slack(road.length) {
+            return Err(self.err(
+                section_nodes[0],
+                format!(
+                    "road {}: the first <laneSection> starts at s = {first}; expected s = 0 \
+                     (the road's first {first} m would have no lanes)",
+                    road.id
+                ),
             ));
         }
         sort_by_s(&mut road.lane_sections, |s| s.s);
@@ -891,9 +924,19 @@ impl Ctx<'_, '_> {
 
     fn lane(&self, node: Node) -> Result<Lane> {
         let id = self.req_i32(node, "id")?;
+        let kind = self.req_str(node, "type")?;
+        if !LaneType::is_standard(kind) {
+            return Err(self.err(
+                node,
+                format!(
+                    "lane {id}: unknown lane type `{kind}`; expected one of OpenDRIVE's: {}",
+                    LaneType::standard_names().join(", ")
+                ),
+            ));
+        }
         let mut lane = Lane {
             id,
-            kind: LaneType::from_name(self.req_str(node, "type")?),
+            kind: LaneType::from_name(kind),
             widths: Vec::new(),
             road_marks: Vec::new(),
             speeds: Vec::new(),

@@ -389,6 +389,37 @@ fn lane_sections_out_of_order_are_refused() {
 }
 
 #[test]
+fn geometries_out_of_order_a_late_first_section_and_a_misspelt_lane_type_are_refused() {
+    let road = straight("a", 0.0, 40.0, "", "");
+    let two_pieces = road.replace(
+        r#"<geometry s="0" x="0" y="0" hdg="0" length="40"><line/></geometry>"#,
+        "<geometry s=\"20\" x=\"20\" y=\"0\" hdg=\"0\" length=\"20\"><line/></geometry>\n\
+         <geometry s=\"0\" x=\"0\" y=\"0\" hdg=\"0\" length=\"20\"><line/></geometry>",
+    );
+    assert_ne!(two_pieces, road);
+    let text = document(&two_pieces);
+    let (line, message) = parse_err(&text);
+    assert!(
+        message.contains("<geometry> at s = 0 comes after the previous one, at s = 20"),
+        "{message}"
+    );
+    assert_eq!(line, line_of(&text, "<geometry s=\"0\""));
+
+    let text = document(&road.replace("<laneSection s=\"0\">", "<laneSection s=\"20\">"));
+    let (line, message) = parse_err(&text);
+    assert!(
+        message.contains("first <laneSection> starts at s = 20"),
+        "{message}"
+    );
+    assert_eq!(line, line_of(&text, "<laneSection"));
+
+    let text = document(&road.replacen("type=\"driving\"", "type=\"drivng\"", 1));
+    let (line, message) = parse_err(&text);
+    assert!(message.contains("unknown lane type `drivng`"), "{message}");
+    assert_eq!(line, line_of(&text, "drivng"));
+}
+
+#[test]
 fn lane_records_out_of_order_are_refused() {
     let road = |records: &str| {
         document(&format!(

@@ -186,11 +186,13 @@ fn render(map: &Map, scene: Option<&Scene>, path: &Path, opts: &RenderOptions) -
         "svg" => atomic_write_with(path, |tmp| {
             let backend = SVGBackend::new(tmp, size);
             draw(backend.into_drawing_area(), map, scene, &view, opts)
+                .map_err(|e| drawing_error(path, e))
         }),
         // `.png`: `check_target` let no other extension through.
         _ => atomic_write_with(path, |tmp| {
             let backend = BitMapBackend::new(tmp, size);
             draw(backend.into_drawing_area(), map, scene, &view, opts)
+                .map_err(|e| drawing_error(path, e))
         }),
     }
 }
@@ -206,16 +208,26 @@ fn draw<DB: DrawingBackend>(
     scene: Option<&Scene>,
     view: &View,
     opts: &RenderOptions,
-) -> Result<()> {
-    draw_road(&area, map, view).map_err(drawing_failed)?;
+) -> std::result::Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    draw_road(&area, map, view)?;
     if let Some(scene) = scene {
-        draw_agents(&area, scene, view, opts).map_err(drawing_failed)?;
+        draw_agents(&area, scene, view, opts)?;
     }
-    area.present().map_err(drawing_failed)
+    area.present()
 }
 
+/// A frame that could not be drawn into memory (the animations' buffers).
 fn drawing_failed<E: std::error::Error + Send + Sync>(e: DrawingAreaErrorKind<E>) -> Error {
     Error::InvalidArgument(format!("drawing failed: {e}"))
+}
+
+/// A figure that could not be drawn at `path`, said of the file: what fails there is
+/// writing it (a full disk, a folder gone), since every figure's input was checked before.
+pub fn drawing_error(path: &Path, e: impl std::fmt::Display) -> Error {
+    Error::io(
+        path,
+        std::io::Error::other(format!("cannot draw the figure: {e}")),
+    )
 }
 
 /// The ground, the road surface (shoulders, then driving lanes) and the lane marks.

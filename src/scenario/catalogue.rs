@@ -48,6 +48,26 @@ pub fn load_families(dir: &Path) -> Result<Vec<LogicalScenario>> {
                 format!("`{}` differs from the file name `{stem}`", family.name),
             ));
         }
+        // A folder named for a set holds that set's families: one labelled otherwise is a
+        // file moved without its label (or the label changed), and would draw into the
+        // other set.
+        let folder = path
+            .parent()
+            .and_then(|p| p.file_name())
+            .and_then(|n| n.to_str())
+            .unwrap_or("");
+        if ["train", "ood"].contains(&folder) && folder != family.set.name() {
+            return Err(Error::invalid(
+                path.display().to_string(),
+                "field `set`",
+                format!(
+                    "`{}` in the folder `{folder}/`; expected set = \"{folder}\" there, or \
+                     the file in the `{}/` folder",
+                    family.set.name(),
+                    family.set.name()
+                ),
+            ));
+        }
         if families.iter().any(|f| f.name == family.name) {
             return Err(Error::invalid(
                 path.display().to_string(),
@@ -63,11 +83,13 @@ pub fn load_families(dir: &Path) -> Result<Vec<LogicalScenario>> {
                 "the family",
                 format!(
                     "`{}` ({} set) draws the same scenarios as `{}` ({} set): only the name, \
-                     description or set differ; expected each family once",
+                     description or set differ, and its numbers by at most {} %; expected each \
+                     family once",
                     family.name,
                     family.set.name(),
                     twin.name,
-                    twin.set.name()
+                    twin.set.name(),
+                    super::family::NEAR_COPY_RELATIVE * 100.0
                 ),
             ));
         }
@@ -294,6 +316,35 @@ mod tests {
             );
         }
         assert!(shipped.len() > 30);
+        // A bound nudged by a hair is the same family.
+        let dir = tempfile::tempdir().expect("temp dir");
+        std::fs::copy(&source, dir.path().join("brake_fast_lane.toml")).expect("copy");
+        let nudged = text
+            .replace("name = \"brake_fast_lane\"", "name = \"nudged\"")
+            .replace("station = [250, 320]", "station = [250, 320.0001]");
+        std::fs::write(dir.path().join("nudged.toml"), nudged).expect("write");
+        let err = load_families(dir.path())
+            .expect_err("a near copy")
+            .to_string();
+        assert!(err.contains("draws the same scenarios as"), "{err}");
+    }
+
+    /// A family whose set label disagrees with the set folder it lies in is refused there.
+    #[test]
+    fn a_family_labelled_for_another_sets_folder_is_refused() {
+        let source = builtin_families().join("train/brake_fast_lane.toml");
+        let text = std::fs::read_to_string(&source).expect("a shipped family");
+        let dir = tempfile::tempdir().expect("temp dir");
+        std::fs::create_dir(dir.path().join("train")).expect("mkdir");
+        let file = dir.path().join("train/brake_fast_lane.toml");
+        std::fs::write(&file, text.replace("set = \"train\"", "set = \"ood\"")).expect("write");
+        let err = load_families(dir.path())
+            .expect_err("mislabelled")
+            .to_string();
+        assert!(
+            err.contains("field `set`") && err.contains("folder `train/`"),
+            "{err}"
+        );
     }
 
     #[test]

@@ -164,6 +164,33 @@ fn default_duration() -> f64 {
     10.0
 }
 
+/// How far apart (relative) two numbers of two families may be for them to draw the same
+/// scenarios: far below any difference a family means (ranges differ by metres or m/s).
+pub const NEAR_COPY_RELATIVE: f64 = 0.01;
+
+/// `a` and `b` alike in shape and strings, numbers within [`NEAR_COPY_RELATIVE`].
+fn nearly_equal(a: &serde_json::Value, b: &serde_json::Value) -> bool {
+    use serde_json::Value;
+    match (a, b) {
+        (Value::Number(x), Value::Number(y)) => {
+            let (x, y) = (
+                x.as_f64().unwrap_or(f64::NAN),
+                y.as_f64().unwrap_or(f64::NAN),
+            );
+            (x - y).abs() <= NEAR_COPY_RELATIVE * x.abs().max(y.abs()) + 1e-9
+        }
+        (Value::Array(x), Value::Array(y)) => {
+            x.len() == y.len() && x.iter().zip(y).all(|(p, q)| nearly_equal(p, q))
+        }
+        (Value::Object(x), Value::Object(y)) => {
+            x.len() == y.len()
+                && x.iter()
+                    .all(|(k, v)| y.get(k).is_some_and(|w| nearly_equal(v, w)))
+        }
+        _ => a == b,
+    }
+}
+
 impl FamilySet {
     /// The name a family file gives it (`set = "train"`).
     pub fn name(self) -> &'static str {
@@ -175,14 +202,20 @@ impl FamilySet {
 }
 
 impl LogicalScenario {
-    /// Whether `other` draws the same concrete scenarios: everything but the name, the
-    /// description and the set agrees.
+    /// Whether `other` draws (nearly) the same concrete scenarios: everything but the name,
+    /// the description and the set agrees, numbers to within [`NEAR_COPY_RELATIVE`]. A bound
+    /// nudged by a hair does not make another family.
     pub fn draws_like(&self, other: &Self) -> bool {
-        self.duration_s == other.duration_s
-            && self.map == other.map
-            && self.target == other.target
-            && self.background == other.background
-            && self.heroes == other.heroes
+        let drawn = |family: &Self| {
+            let mut value = serde_json::to_value(family).unwrap_or_default();
+            if let Some(fields) = value.as_object_mut() {
+                for key in ["name", "description", "set"] {
+                    fields.remove(key);
+                }
+            }
+            value
+        };
+        nearly_equal(&drawn(self), &drawn(other))
     }
 
     /// Every value a concrete scenario of this family draws, by the name it is recorded under

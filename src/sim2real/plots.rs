@@ -12,11 +12,8 @@ use super::locate::Mismatch;
 use super::report::Report;
 use super::unexplained::{RegimeExcess, UNEXPLAINED_RATIO};
 use super::windows::Window;
-use crate::error::{Error, Result};
-
-fn plot_error(path: &Path, e: impl std::fmt::Display) -> Error {
-    Error::InvalidArgument(format!("cannot draw {}: {e}", path.display()))
-}
+use crate::error::Result;
+use crate::render::drawing_error;
 
 /// The files [`write_plots`] writes into its folder.
 pub const PLOT_FILES: [&str; 4] = ["regimes.svg", "excess.svg", "hypotheses.svg", "tracks.svg"];
@@ -29,14 +26,14 @@ pub fn write_plots(dir: &Path, outcome: &Outcome) -> Result<Vec<PathBuf>> {
     let [regimes, excess, hypotheses, tracks] = PLOT_FILES.map(|name| dir.join(name));
     crate::io::atomic_write_with(&regimes, |tmp| {
         draw_regimes(tmp, &report.mismatch, &report.final_model.mismatch)
-            .map_err(|e| plot_error(&regimes, e))
+            .map_err(|e| drawing_error(&regimes, e))
     })?;
     crate::io::atomic_write_with(&excess, |tmp| {
         draw_excess(tmp, &outcome.excess_before, &outcome.excess_after)
-            .map_err(|e| plot_error(&excess, e))
+            .map_err(|e| drawing_error(&excess, e))
     })?;
     crate::io::atomic_write_with(&hypotheses, |tmp| {
-        draw_hypotheses(tmp, report).map_err(|e| plot_error(&hypotheses, e))
+        draw_hypotheses(tmp, report).map_err(|e| drawing_error(&hypotheses, e))
     })?;
     crate::io::atomic_write_with(&tracks, |tmp| {
         draw_tracks(
@@ -45,7 +42,7 @@ pub fn write_plots(dir: &Path, outcome: &Outcome) -> Result<Vec<PathBuf>> {
             &outcome.baseline,
             &outcome.final_model,
         )
-        .map_err(|e| plot_error(&tracks, e))
+        .map_err(|e| drawing_error(&tracks, e))
     })?;
     Ok(vec![regimes, excess, hypotheses, tracks])
 }

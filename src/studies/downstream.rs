@@ -149,7 +149,11 @@ pub fn downstream_table(rows: &[DownstreamRow]) -> String {
     for r in rows {
         let cell = |f: fn(&PredictionScore) -> f64| {
             let (m, s) = r.stat(f);
-            format!("{m:.2} ± {s:.2}")
+            // One seed has no spread to show: "± 0.00" would claim one.
+            match r.scores.len() {
+                0 | 1 => format!("{m:.2} (one seed)"),
+                _ => format!("{m:.2} ± {s:.2}"),
+            }
         };
         let examples = r.train_examples.iter().sum::<usize>() / r.train_examples.len().max(1);
         out.push_str(&format!(

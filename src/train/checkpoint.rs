@@ -421,6 +421,32 @@ fn verify_checksums(dir: &Path, state: &LoopState) -> Result<()> {
     Ok(())
 }
 
+/// Checks the policy file `policy` (the checkpoint's own, or the finished copy beside its
+/// run) against the sha256 that the checkpoint in `dir` recorded for its policy: weights
+/// changed after training would be evaluated as the trained ones. Checkpoints written before
+/// checksums were kept are not checked.
+pub fn verify_policy(dir: &Path, state: &LoopState, policy: &Path) -> Result<()> {
+    let Some(expected) = state.checksums.get(POLICY) else {
+        return Ok(());
+    };
+    let actual = sha256_hex(&crate::io::read_bytes(
+        policy,
+        crate::io::Format::Parameters,
+    )?);
+    if &actual == expected {
+        return Ok(());
+    }
+    Err(Error::invalid(
+        policy.display().to_string(),
+        "sha256",
+        format!(
+            "is {actual}, but {} recorded {expected} for the policy its run saved: the weights \
+             were changed or corrupted after training",
+            dir.join(STATE).display()
+        ),
+    ))
+}
+
 /// The loop state of the checkpoint in `dir` (without its networks).
 pub fn read_state(dir: &Path) -> Result<LoopState> {
     let state_path = dir.join(STATE);

@@ -117,14 +117,14 @@ fn main() -> ExitCode {
     match run(parse_cli()).and_then(|()| rtr::io::console::check_stdout()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            rtr::errln!("error: {e}");
+            rtr::errln!("error: {}", rtr::io::console::bounded(&e.to_string()));
             let mut shown = e.to_string();
             let mut source = std::error::Error::source(&e);
             while let Some(cause) = source {
                 // Variants that wrap a cause already print it in their own message.
                 let text = cause.to_string();
                 if !shown.contains(&text) {
-                    rtr::errln!("  caused by: {text}");
+                    rtr::errln!("  caused by: {}", rtr::io::console::bounded(&text));
                     shown.push_str(&text);
                 }
                 source = cause.source();

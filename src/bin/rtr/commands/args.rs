@@ -36,6 +36,17 @@ impl DataArgs {
     pub fn checked_dir(&self) -> Result<PathBuf> {
         if let Some(dir) = &self.data {
             rtr::io::check_input_folder(dir, "--data", "the AUTOMATUM A9 folder")?;
+            for file in [a9::STATIC_FILE, a9::DYNAMIC_FILE] {
+                if dir.join(file).symlink_metadata().is_err() {
+                    return Err(rtr::Error::InvalidArgument(format!(
+                        "--data {}: no {file} in it; expected the AUTOMATUM A9 folder ({} \
+                         and {}, as shipped in data/automatum-a9)",
+                        dir.display(),
+                        a9::STATIC_FILE,
+                        a9::DYNAMIC_FILE
+                    )));
+                }
+            }
         }
         Ok(self.dir())
     }

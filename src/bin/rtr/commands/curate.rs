@@ -33,9 +33,11 @@ pub struct CurateArgs {
 
 pub fn run(args: CurateArgs) -> Result<()> {
     rtr::io::check_input_path(&args.checkpoint, "--checkpoint")?;
-    let inputs = Inputs::new()
-        .with("--checkpoint", &args.checkpoint)
-        .with("--data", args.data.dir());
+    let inputs = rtr::eval::trained::with_run_inputs(
+        Inputs::new().with("--data", args.data.dir()),
+        "--checkpoint",
+        [&args.checkpoint],
+    );
     let _claim = claim_output_file(&args.out, "--out", &inputs, &["txt", "list"])?;
     let device = args.backend.device(false)?;
     let trained = TrainedPolicy::load(&args.checkpoint, &device)?;

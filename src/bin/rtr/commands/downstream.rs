@@ -53,9 +53,11 @@ pub fn run(args: DownstreamArgs) -> Result<()> {
                 .into(),
         ));
     }
-    let inputs = Inputs::new()
-        .with_all("--checkpoint", &args.checkpoints)
-        .with("--data", args.data.dir());
+    let inputs = rtr::eval::trained::with_run_inputs(
+        Inputs::new().with("--data", args.data.dir()),
+        "--checkpoint",
+        &args.checkpoints,
+    );
     let _claim = match &args.out {
         Some(out) => {
             let claim = claim_output_folder(out, "--out", &inputs)?;
@@ -104,8 +106,10 @@ pub fn run(args: DownstreamArgs) -> Result<()> {
         let text = serde_json::to_string_pretty(&json)
             .map_err(|e| Error::InvalidArgument(format!("results.json: {e}")))?;
         let staged = rtr::io::StagedFolder::new(out, DOWNSTREAM_RESULTS)?;
-        rtr::io::atomic_write(&staged.path().join("results.json"), text.as_bytes())?;
-        rtr::io::atomic_write(&staged.path().join("table.md"), table.as_bytes())?;
+        staged.fill(|dir| {
+            rtr::io::atomic_write(&dir.join("results.json"), text.as_bytes())?;
+            rtr::io::atomic_write(&dir.join("table.md"), table.as_bytes())
+        })?;
         staged.commit()?;
     }
     rtr::out!("{table}")?;

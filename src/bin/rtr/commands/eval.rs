@@ -72,11 +72,11 @@ fn claim_output(args: &EvalArgs) -> Result<Option<OutputClaim>> {
     if let Some(dir) = &args.scenarios {
         rtr::io::check_input_folder(dir, "--scenarios", SCENARIO_FOLDER)?;
     }
-    let inputs = Inputs::new()
-        .with_all("--checkpoint", &args.checkpoints)
-        .with_all("--scenarios", &args.scenarios)
-        .with_all("--commonroad", &args.commonroad)
-        .with("--data", args.data.dir());
+    let inputs =
+        rtr::eval::trained::with_run_inputs(Inputs::new(), "--checkpoint", &args.checkpoints)
+            .with_all("--scenarios", &args.scenarios)
+            .with_all("--commonroad", &args.commonroad)
+            .with("--data", args.data.dir());
     let Some(out) = &args.out else {
         return Ok(None);
     };
@@ -179,14 +179,17 @@ pub fn run(args: EvalArgs) -> Result<()> {
     if let Some(out) = &args.out {
         // Tables and figures land together or not at all (a figure that fails leaves no table).
         let staged = StagedFolder::new(out, EVAL_RESULTS)?;
-        let mut written = write_study(staged.path(), &entries, &results, &scenes, &device)?;
-        if !clip_summaries.is_empty() {
-            let path = staged.path().join("commonroad.json");
-            let text = serde_json::to_string_pretty(&clip_summaries)
-                .map_err(|e| Error::InvalidArgument(format!("cannot encode clips: {e}")))?;
-            rtr::io::atomic_write(&path, text.as_bytes())?;
-            written.push(path);
-        }
+        let written = staged.fill(|dir| {
+            let mut written = write_study(dir, &entries, &results, &scenes, &device)?;
+            if !clip_summaries.is_empty() {
+                let path = dir.join("commonroad.json");
+                let text = serde_json::to_string_pretty(&clip_summaries)
+                    .map_err(|e| Error::InvalidArgument(format!("cannot encode clips: {e}")))?;
+                rtr::io::atomic_write(&path, text.as_bytes())?;
+                written.push(path);
+            }
+            Ok(written)
+        })?;
         staged.commit()?;
         wrote = Some(format!(
             "wrote {} files to {}",

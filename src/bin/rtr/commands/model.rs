@@ -54,8 +54,17 @@ const AVERAGED_MODEL: &str = "rtr model average";
 fn average(checkpoints: &[PathBuf], out: &std::path::Path) -> Result<()> {
     for path in checkpoints {
         rtr::io::check_input_path(path, "--checkpoint")?;
+        // averaged.json names each source by its path, and JSON holds only UTF-8.
+        if path.to_str().is_none() {
+            return Err(Error::InvalidArgument(format!(
+                "--checkpoint {}: the path is not UTF-8, and averaged.json records every \
+                 source by its path; rename or link it under a UTF-8 name",
+                path.display()
+            )));
+        }
     }
-    let inputs = rtr::io::Inputs::new().with_all("--checkpoint", checkpoints);
+    let inputs =
+        rtr::eval::trained::with_run_inputs(rtr::io::Inputs::new(), "--checkpoint", checkpoints);
     if let Some(run) = rtr::train::checkpoint::enclosing_run(out) {
         return Err(Error::InvalidArgument(format!(
             "--out {}: lies in the training run {}, whose trainer replaces and prunes what is \
@@ -65,16 +74,18 @@ fn average(checkpoints: &[PathBuf], out: &std::path::Path) -> Result<()> {
         )));
     }
     let _claim = rtr::io::claim_output_folder(out, "--out", &inputs)?;
-    if out.join("policy.bpk").exists() {
-        return Err(Error::InvalidArgument(format!(
-            "--out {} already holds a policy.bpk; choose another folder",
-            out.display()
-        )));
-    }
+    // A model or training run there is refused (it is no average's); an earlier average is
+    // replaced whole.
+    rtr::io::check_result_folder(
+        out,
+        AVERAGED_MODEL,
+        &["policy.bpk", "config.toml", "averaged.json"],
+    )?;
     let device = Backend::NdArray.device(false)?;
     // Staged: the policy, its config and averaged.json appear together or not at all.
     let staged = rtr::io::StagedFolder::new(out, AVERAGED_MODEL)?;
-    let report = rtr::eval::averaged::write_averaged_policy(checkpoints, staged.path(), &device)?;
+    let report =
+        staged.fill(|dir| rtr::eval::averaged::write_averaged_policy(checkpoints, dir, &device))?;
     staged.commit()?;
     rtr::outln!(
         "{}: the mean of {} {} checkpoints",

@@ -75,9 +75,11 @@ pub fn run(command: ProbeCommand) -> Result<()> {
         )));
     }
     let base = base_config(&args)?;
-    let inputs = rtr::io::Inputs::new()
-        .with_all("--config", &args.config)
-        .with_all("--warm-start", &args.warm_start);
+    let inputs = rtr::eval::trained::with_run_inputs(
+        rtr::io::Inputs::new().with_all("--config", &args.config),
+        "--warm-start",
+        &args.warm_start,
+    );
     let _claim = match &args.out {
         Some(out) => Some(rtr::io::claim_output_folder(out, "--out", &inputs)?),
         None => None,
@@ -145,6 +147,14 @@ fn default_init(policy: PathBuf) -> InitConfig {
 fn check_warm_start(warm_start: &std::path::Path) -> Result<PathBuf> {
     let run_file = warm_start_config(warm_start)?;
     rtr::io::check_input_file(&run_file, "--warm-start")?;
+    // The policy itself, before any scenario is drawn.
+    if warm_start.is_dir() && !warm_start.join("policy.bpk").is_file() {
+        return Err(Error::InvalidArgument(format!(
+            "--warm-start {}: no policy.bpk there: an unfinished run keeps its policy in \
+             checkpoints/iter-*/ (name that folder), and a model folder holds one",
+            warm_start.display()
+        )));
+    }
     Ok(run_file)
 }
 
@@ -155,15 +165,18 @@ fn warm_start_config(warm_start: &std::path::Path) -> Result<PathBuf> {
     } else {
         warm_start.to_path_buf()
     };
-    let config = dir.join("config.toml");
-    if !config.is_file() {
-        return Err(Error::InvalidArgument(format!(
-            "--warm-start {}: no config.toml there (a model folder such as models/il_ff, or a \
-             finished run folder, was expected)",
+    // A checkpoint folder (`checkpoints/iter-*`) sits two levels below its run's config.
+    let candidates = [
+        dir.join("config.toml"),
+        dir.join("../..").join("config.toml"),
+    ];
+    candidates.into_iter().find(|c| c.is_file()).ok_or_else(|| {
+        Error::InvalidArgument(format!(
+            "--warm-start {}: no config.toml there (a model folder such as models/il_ff, \
+                 a finished run folder or a run's checkpoints/iter-* folder was expected)",
             warm_start.display()
-        )));
-    }
-    Ok(config)
+        ))
+    })
 }
 
 fn table(reports: &[TaskReport]) -> String {

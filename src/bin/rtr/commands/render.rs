@@ -25,7 +25,7 @@ pub struct RenderArgs {
     data: DataArgs,
     /// A concrete long-tail scenario (JSON from `rtr scenarios generate`) instead of a
     /// nominal scene; drawn with its reference run as the future, heroes in red.
-    #[arg(long, conflicts_with_all = ["scene", "index", "commonroad"])]
+    #[arg(long, conflicts_with_all = ["scene", "index", "commonroad", "split"])]
     scenario: Option<PathBuf>,
     /// A CommonRoad scenario file (.xml, .xml.gz) instead of the A9 recording: one of its
     /// recorded scenes, chosen with --scene or --index (lanes without a speed limit get 130 km/h).
@@ -77,11 +77,11 @@ pub(super) enum Source {
 impl RenderArgs {
     /// The files and folders the command reads, for the output checks.
     pub(super) fn inputs(&self) -> Inputs {
-        Inputs::new()
+        let inputs = Inputs::new()
             .with("--data", self.data.dir())
             .with_all("--scenario", &self.scenario)
-            .with_all("--commonroad", &self.commonroad)
-            .with_all("--checkpoint", &self.checkpoint)
+            .with_all("--commonroad", &self.commonroad);
+        rtr::eval::trained::with_run_inputs(inputs, "--checkpoint", &self.checkpoint)
     }
 }
 

@@ -78,7 +78,8 @@ pub fn run(command: ScenariosCommand) -> Result<()> {
                 .with_all("--families", &families)
                 .with("--data", data.dir());
             let _claim = claim_output_folder(&out, "--out", &inputs)?;
-            refuse_earlier_sets(&out)?;
+            // The loaders read every file of a set folder: one rtr did not write there would
+            // join the new set unseen. An earlier set of rtr's is replaced whole.
             rtr::io::check_result_folder(&out, SCENARIO_SET, &["train", "eval", "ood"])?;
             let families = load_families(&families_folder(families)?)?;
             let dataset = data.load()?;
@@ -92,7 +93,7 @@ pub fn run(command: ScenariosCommand) -> Result<()> {
             };
             let sets = generate_sets(&families, &stats, &config)?;
             let staged = StagedFolder::new(&out, SCENARIO_SET)?;
-            let written = sets.write(staged.path())?;
+            let written = staged.fill(|dir| sets.write(dir))?;
             staged.commit()?;
             for set in ScenarioSet::ALL {
                 let list = sets.set(set);
@@ -117,26 +118,6 @@ pub fn run(command: ScenariosCommand) -> Result<()> {
             Ok(())
         }
     }
-}
-
-/// Refuses an `--out` whose set folders already hold files: the loaders read every file of a
-/// set folder, so a set drawn with other settings would be mixed into the new one unseen.
-fn refuse_earlier_sets(out: &std::path::Path) -> Result<()> {
-    for set in ScenarioSet::ALL {
-        let dir = out.join(set.name());
-        if !dir.is_dir() {
-            continue;
-        }
-        if !rtr::io::list_folder(&dir)?.is_empty() {
-            return Err(rtr::Error::InvalidArgument(format!(
-                "--out {}: {} already holds files; the loaders read every file there, so an \
-                 earlier set would be mixed into this one. Choose a new folder or remove them",
-                out.display(),
-                dir.display()
-            )));
-        }
-    }
-    Ok(())
 }
 
 /// The families folder: `--families`, checked to be a folder, or the built-in one.

@@ -128,12 +128,11 @@ fn write_results(out: &std::path::Path, outcome: &rtr::sim2real::Outcome) -> Res
     let json = serde_json::to_string_pretty(report)
         .map_err(|e| Error::InvalidArgument(format!("cannot encode the report: {e}")))?;
     let staged = StagedFolder::new(out, KIND)?;
-    rtr::io::atomic_write(&staged.path().join(REPORT), json.as_bytes())?;
-    rtr::io::atomic_write(
-        &staged.path().join(DYNAMICS),
-        report.dynamics().to_toml()?.as_bytes(),
-    )?;
-    write_plots(staged.path(), outcome)?;
+    staged.fill(|dir| {
+        rtr::io::atomic_write(&dir.join(REPORT), json.as_bytes())?;
+        rtr::io::atomic_write(&dir.join(DYNAMICS), report.dynamics().to_toml()?.as_bytes())?;
+        write_plots(dir, outcome)
+    })?;
     staged.commit()
 }
 

@@ -91,7 +91,7 @@ pub fn run(args: SweepArgs) -> Result<()> {
     let results = evaluate_points(&points, &dirs, &scenes, &device, &config, &progress)?;
     progress.finish_and_clear();
     let staged = rtr::io::StagedFolder::new(&args.out, SWEEP_RESULTS)?;
-    write_sweep(staged.path(), &results, &scenes)?;
+    staged.fill(|dir| write_sweep(dir, &results, &scenes))?;
     staged.commit()?;
     rtr::out!("{}", rtr::eval::markdown_table(&results, &sets))?;
     rtr::outln!(

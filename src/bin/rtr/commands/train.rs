@@ -116,6 +116,7 @@ pub fn run(args: TrainArgs) -> Result<()> {
     let _claim = claim_output_folder(&out, "--out", &inputs)?;
     refuse_foreign_folder(&out)?;
     rtr::train::checkpoint::resume_point(&out, args.resume)?;
+    check_named_inputs(&config, args.resume)?;
     let dataset = args.data.load()?;
     let method = config.method.name();
     let progress = indicatif::ProgressBar::new(0).with_style(
@@ -173,6 +174,21 @@ pub fn run(args: TrainArgs) -> Result<()> {
 /// Refuses an `--out` folder that holds files but no run: a new run would write its
 /// config.toml and curves.csv over whatever is there. A folder a failed run left (its
 /// config.toml and curves.csv only) is fine.
+/// The files and folders the run file names, each there and of a readable kind, checked
+/// before the data loads: a typo is named at once, not after the loading. A resumed run
+/// does not read its warm start again.
+fn check_named_inputs(config: &rtr::train::TrainConfig, resume: bool) -> Result<()> {
+    for (field, path) in config.input_paths() {
+        let path = match (field, &config.init) {
+            ("init.policy", _) if resume => continue,
+            ("init.policy", Some(init)) => init.policy_file(),
+            _ => path,
+        };
+        rtr::io::check_input_path(&path, "path").map_err(|e| e.in_field(field))?;
+    }
+    Ok(())
+}
+
 fn refuse_foreign_folder(out: &Path) -> Result<()> {
     if !out.is_dir() || rtr::train::checkpoint::has_checkpoint(out) {
         return Ok(());

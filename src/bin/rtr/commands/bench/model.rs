@@ -17,13 +17,13 @@ use std::sync::Arc;
 use burn::module::Module;
 use burn::prelude::*;
 
-use rtr::Result;
 use rtr::backend::Backend;
 use rtr::map::{LaneGraph, Map};
 use rtr::model::{AgentInput, LaneInput, ModelConfig, PolicyNetwork, ValueNetwork};
 use rtr::scene::{Scene, SceneBatch, synthetic_scene};
 use rtr::sim::logged_frames;
 use rtr::usage::{CoreMeter, peak_rss_mb, reset_peak_rss};
+use rtr::{Error, Result};
 
 use super::median_seconds;
 
@@ -98,6 +98,9 @@ impl Shard {
     }
 }
 
+/// Scenes in the benchmark's batch (of 32 agents each).
+const BATCH_SCENES: usize = 32;
+
 /// The batch cut into `devices` contiguous shards, each on its own device.
 fn shards(
     scenes: &[&Scene],
@@ -131,9 +134,15 @@ pub fn run(
     devices: usize,
     repetitions: usize,
 ) -> Result<ModelBench> {
+    let (b, n) = (BATCH_SCENES, 32);
+    if devices > b {
+        return Err(Error::InvalidArgument(format!(
+            "--devices {devices}: the benchmark's batch holds {b} scenes, so at most {b} \
+             devices can each take a share"
+        )));
+    }
     let graph = Arc::new(LaneGraph::build(&map, 10.0));
     let config = ModelConfig::default();
-    let (b, n) = (32, 32);
     let history = config.history_steps - 1;
     let scenes: Vec<Scene> = (0..b)
         .map(|i| synthetic_scene(&map, &graph, n, i, history, 1))
