@@ -263,7 +263,16 @@ fn procedural_maps_render_and_export_to_opendrive_that_reads_back() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    assert!(std::fs::metadata(&png).expect("png").len() > 1000);
+    // A real drawing: the width asked for, and more than one colour (road on ground).
+    let decoder = png::Decoder::new(std::io::BufReader::new(
+        std::fs::File::open(&png).expect("png"),
+    ));
+    let mut reader = decoder.read_info().expect("a PNG");
+    let mut pixels = vec![0; reader.output_buffer_size().expect("size")];
+    let info = reader.next_frame(&mut pixels).expect("a frame");
+    assert_eq!(info.width, 600);
+    let first = &pixels[..3];
+    assert!(pixels.chunks(3).any(|p| p != first), "one flat colour");
 
     let out = rtr(&[
         "map",

@@ -697,6 +697,35 @@ fn a_clip_that_starts_late_starts_at_time_zero_and_two_clips_with_one_id_are_ref
     );
 }
 
+/// `text` (a clip of [`template`]'s shape) turned a quarter round the origin, then moved
+/// `shift` metres along x: every point (x, y) becomes (shift - y, x), every heading grows by
+/// pi / 2.
+fn quarter_turned(text: &str, shift: f64) -> String {
+    let mut out = String::new();
+    let mut rest = text;
+    while let Some(at) = rest.find("<point><x>") {
+        let (head, tail) = rest.split_at(at);
+        out.push_str(head);
+        let end = tail.find("</point>").expect("a point") + "</point>".len();
+        let number = |open: &str, close: &str| -> f64 {
+            let from = tail.find(open).expect(open) + open.len();
+            let to = from + tail[from..].find(close).expect(close);
+            tail[from..to].parse().expect("a number")
+        };
+        let (x, y) = (number("<x>", "</x>"), number("<y>", "</y>"));
+        out.push_str(&format!("<point><x>{}</x><y>{x}</y></point>", shift - y));
+        rest = &tail[end..];
+    }
+    out.push_str(rest);
+    out.replace(
+        "<orientation><exact>0.0</exact>",
+        &format!(
+            "<orientation><exact>{}</exact>",
+            std::f64::consts::FRAC_PI_2
+        ),
+    )
+}
+
 /// `template` with its steps shifted by `shift`, its benchmark id and obstacle id replaced and
 /// its car moved sideways by `dy` metres.
 fn variant(steps: usize, shift: usize, id: &str, dy: f64) -> String {
@@ -731,6 +760,12 @@ fn a_clip_repeated_under_another_id_or_cut_shorter_is_read_once() {
     );
     // The first clip moved 2 cm sideways as a whole: still its traffic.
     write(&dir, "e.xml", &variant(101, 0, "ZAM_Moved-1_1_T-1", 0.02));
+    // The first clip turned a quarter round and moved 1 km: still its traffic.
+    write(
+        &dir,
+        "f.xml",
+        &quarter_turned(&variant(101, 0, "ZAM_Turned-1_1_T-1", 0.0), 1000.0),
+    );
     let config = SceneConfig::default();
     let single = commonroad_scenes(&load_commonroad(&[original], None).unwrap(), &config)
         .unwrap()
@@ -751,6 +786,7 @@ fn a_clip_repeated_under_another_id_or_cut_shorter_is_read_once() {
             Some(a.as_str()),
             Some(a.as_str()),
             None,
+            Some(a.as_str()),
             Some(a.as_str())
         ]
     );

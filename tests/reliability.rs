@@ -701,7 +701,7 @@ fn a_folder_of_the_users_is_never_written_over() {
             "--out",
             out_str,
         ],
-        &["not a run's", "table.md"],
+        &["holds files but no run", "table.md"],
     );
     assert_refused(
         &[
@@ -721,7 +721,8 @@ fn a_folder_of_the_users_is_never_written_over() {
         std::fs::read_to_string(out.join("table.md")).expect("kept"),
         "my notes"
     );
-    // A folder where a run writes a file is not a run's either.
+    // A folder where a run writes a file is not a run's either, nor a run's file names
+    // without a run.
     let odd = dir.path().join("odd");
     std::fs::create_dir_all(odd.join("config.toml")).expect("mkdir");
     let odd_str = odd.to_str().expect("UTF-8 path");
@@ -733,7 +734,24 @@ fn a_folder_of_the_users_is_never_written_over() {
             "--out",
             odd_str,
         ],
-        &["not a run's", "config.toml/"],
+        &["holds files but no run", "config.toml/"],
+    );
+    let notes = dir.path().join("notes");
+    std::fs::create_dir_all(&notes).expect("mkdir");
+    std::fs::write(notes.join("curves.csv"), "mine").expect("write");
+    assert_refused(
+        &[
+            "train",
+            "--config",
+            "experiments/main/il.toml",
+            "--out",
+            notes.to_str().expect("UTF-8 path"),
+        ],
+        &["holds files but no run", "curves.csv"],
+    );
+    assert_eq!(
+        std::fs::read_to_string(notes.join("curves.csv")).expect("kept"),
+        "mine"
     );
 }
 

@@ -1000,8 +1000,12 @@ fn resume_and_loading_refuse_missing_tampered_and_corrupted_checkpoints() {
         text.contains("policy.bpk") && text.contains("sha256"),
         "{text}"
     );
-    // The same bytes without a state to check them against: NaN weights, refused by name.
+    // The same bytes without a state to check them against (copied out of the checkpoint):
+    // NaN weights, refused by name.
     let device = rtr::backend::Backend::reference_device(false);
+    let loose = tempfile::tempdir().expect("temp dir");
+    let policy_path = loose.path().join("policy.bpk");
+    std::fs::write(&policy_path, &bytes).expect("copy");
     let err =
         rtr::train::load_policy(&policy_path, &config().model, &device).expect_err("NaN weights");
     let text = err.to_string();

@@ -72,30 +72,31 @@ fn locate(path: &Path) -> Result<(PathBuf, PathBuf)> {
     Ok((policy, config))
 }
 
-/// `inputs` with each policy of `paths` (given with `flag`) and every file its run reads
-/// (its run file's `dynamics`, `data.curated`, ...): an output written over one of those
-/// would change, or stop, that run's own `--resume`. A path that is no trained policy adds
-/// itself alone (its loading names what is wrong).
+/// `inputs` with each policy of `paths` (given with `flag`, each checked to be a file or a
+/// folder) and every file its run reads (its run file's `dynamics`, `data.curated`, ...): an
+/// output written over one of those would change, or stop, that run's own `--resume`. A path
+/// that is no trained policy adds itself alone (its loading names what is wrong).
 pub fn with_run_inputs<P: AsRef<Path>>(
     inputs: crate::io::Inputs,
     flag: &str,
     paths: impl IntoIterator<Item = P>,
-) -> crate::io::Inputs {
-    paths.into_iter().fold(inputs, |inputs, path| {
+) -> Result<crate::io::Inputs> {
+    paths.into_iter().try_fold(inputs, |inputs, path| {
         let path = path.as_ref();
+        crate::io::check_input_path(path, flag)?;
         let read = locate(path).ok().and_then(|(_, config_path)| {
             let text = crate::io::read_text(&config_path, crate::io::Format::Settings).ok()?;
             TrainConfig::from_toml_str(&text, &config_path.display().to_string()).ok()
         });
         let run_files = read.map(|c| c.input_paths()).unwrap_or_default();
-        run_files
+        Ok(run_files
             .into_iter()
             .fold(inputs.with(flag, path), |inputs, (field, file)| {
                 inputs.with(
                     &format!("{flag} {}'s run file's `{field}`", path.display()),
                     file,
                 )
-            })
+            }))
     })
 }
 
@@ -114,7 +115,6 @@ impl TrainedPolicy {
         let recorded = recorded_state(&policy_path, &config_path)?;
         if let Some((dir, state)) = &recorded {
             check_recorded_config(dir, state, &config, &config_path)?;
-            crate::train::checkpoint::verify_policy(dir, state, &policy_path)?;
         }
         // Evaluation needs neither the frozen KL reference nor the training data.
         config.reference = None;

@@ -99,6 +99,25 @@ impl Drop for OutputClaim {
     }
 }
 
+/// On SIGINT, SIGTERM or SIGHUP, removes the lock files this process holds and exits as
+/// the signal would have (128 + its number): a writer stopped with Ctrl-C leaves no
+/// `.rtr-lock-*` file behind. (Its staging folders, named with its process id, are removed by
+/// the next command that writes beside them.)
+pub fn release_locks_on_signal() {
+    use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
+    let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM, SIGHUP]) else {
+        return;
+    };
+    std::thread::spawn(move || {
+        if let Some(signal) = signals.forever().next() {
+            for path in held_here().iter() {
+                let _ = std::fs::remove_file(path);
+            }
+            std::process::exit(128 + signal);
+        }
+    });
+}
+
 /// The lock files this process holds: its own claims inside a folder it has claimed (a
 /// sweep's points) are not another writer's.
 fn held_here() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {

@@ -43,7 +43,7 @@ impl Format {
             Format::SceneList | Format::Scenario => 64 * MIB,
             Format::OpenDrive | Format::CommonRoad => 512 * MIB,
             Format::Automatum | Format::Recordings => 2048 * MIB,
-            Format::Parameters => 4096 * MIB,
+            Format::Parameters => 1024 * MIB,
         }
     }
 

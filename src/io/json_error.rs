@@ -11,6 +11,7 @@ pub fn json_error(source: &str, text: Option<&str>, e: &serde_json::Error) -> Er
     if let Some(cut) = message.rfind(" at line ") {
         message.truncate(cut);
     }
+    message = plain_words(&message);
     if message.starts_with("expected value") {
         message.push_str(" (a number, string, array or object; JSON has no NaN or Infinity)");
     }
@@ -30,10 +31,32 @@ pub fn json_error(source: &str, text: Option<&str>, e: &serde_json::Error) -> Er
     }
 }
 
-/// The last `"key":` on the 1-based `line` of `text` before `column`.
+/// serde's names for Rust number types in JSON's words.
+fn plain_words(message: &str) -> String {
+    let mut text = message.replacen("invalid type: ", "found ", 1);
+    for (rust, plain) in [
+        ("expected usize", "expected a whole number >= 0"),
+        ("expected u64", "expected a whole number >= 0"),
+        ("expected u32", "expected a whole number >= 0"),
+        ("expected i64", "expected a whole number"),
+        ("expected i32", "expected a whole number"),
+        ("expected f64", "expected a number"),
+        ("expected f32", "expected a number"),
+    ] {
+        text = text.replace(rust, plain);
+    }
+    text
+}
+
+/// The last `"key":` on the 1-based `line` of `text` before `column`. None where the
+/// position closes an object or a list: serde reads some objects whole (a tagged one) and
+/// reports a value's error at their end, after keys that are not at fault.
 fn key_before(text: &str, line: usize, column: usize) -> Option<String> {
     let row = text.lines().nth(line.checked_sub(1)?)?;
     let head = row.get(..column.min(row.len()))?;
+    if head.trim_end().ends_with(['}', ']']) || head.trim().is_empty() {
+        return None;
+    }
     let colon = head.rfind("\":")?;
     let open = head[..colon].rfind('"')?;
     Some(head[open + 1..colon].to_string())
@@ -50,7 +73,10 @@ mod tests {
             .expect_err("not a number");
         let shown = json_error("s.json", Some(text), &e).to_string();
         assert!(shown.starts_with("s.json: line 2, column"), "{shown}");
-        assert!(shown.contains("`dt`: invalid type"), "{shown}");
+        assert!(
+            shown.contains("`dt`: found string \"half\", expected a number"),
+            "{shown}"
+        );
         assert_eq!(shown.matches("line 2").count(), 1, "{shown}");
         #[derive(Debug, serde::Deserialize)]
         #[serde(deny_unknown_fields)]

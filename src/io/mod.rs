@@ -17,7 +17,8 @@ mod staged;
 mod toml_field;
 
 pub use claim::{
-    Inputs, OutputClaim, claim_output_file, claim_output_folder, is_bookkeeping, resolved,
+    Inputs, OutputClaim, claim_output_file, claim_output_folder, is_bookkeeping,
+    release_locks_on_signal, resolved,
 };
 pub use input::{
     Capped, Format, capped, check_input_file, check_input_folder, check_input_path, files_in_tree,

@@ -284,7 +284,17 @@ const ROAD_MARK_NAMES: [(RoadMark, &str); 12] = [
     (RoadMark::Custom, "custom"),
 ];
 
+/// The `color` values of a `<roadMark>` in OpenDRIVE 1.4 to 1.8.
+pub const ROAD_MARK_COLORS: [&str; 9] = [
+    "standard", "blue", "green", "red", "white", "yellow", "orange", "violet", "black",
+];
+
 impl RoadMark {
+    /// The standard's `type` values.
+    pub fn standard_names() -> Vec<&'static str> {
+        ROAD_MARK_NAMES.iter().map(|(_, n)| *n).collect()
+    }
+
     pub fn from_name(name: &str) -> RoadMark {
         ROAD_MARK_NAMES
             .iter()

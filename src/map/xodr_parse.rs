@@ -137,6 +137,9 @@ fn parse(text: &str, source_name: &str, check_topology: bool) -> Result<OpenDriv
             "the document has no <road>; expected at least one road",
         ));
     }
+    if check_topology {
+        cx.check_junction_references(root, &out)?;
+    }
     let widest_driving = out
         .roads
         .iter()
@@ -410,6 +413,46 @@ impl Ctx<'_, '_> {
         Ok(Some(speed))
     }
 
+    /// The attribute `name` of `node`, if given, refused unless it is one of `allowed` (the
+    /// standard's values: a misspelt one would be taken for something else in silence).
+    fn enumerated<'a>(
+        &self,
+        node: Node<'a, 'a>,
+        name: &str,
+        allowed: &[&str],
+    ) -> Result<Option<&'a str>> {
+        match node.attribute(name) {
+            Some(value) if !allowed.contains(&value) => Err(self.err(
+                node,
+                format!(
+                    "<{}> attribute `{name}` is `{value}`; expected one of {}",
+                    node.tag_name().name(),
+                    allowed.join(", ")
+                ),
+            )),
+            value => Ok(value),
+        }
+    }
+
+    /// Every road's `junction` names a `<junction>` of the document.
+    fn check_junction_references(&self, root: Node, od: &OpenDrive) -> Result<()> {
+        for (road, node) in od.roads.iter().zip(elements(root, "road")) {
+            if let Some(junction) = &road.junction
+                && !od.junctions.iter().any(|j| &j.id == junction)
+            {
+                return Err(self.err(
+                    node,
+                    format!(
+                        "road {} lies in junction `{junction}`, which the document does not \
+                         define; expected the id of a <junction>, or -1 for none",
+                        road.id
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
     /// The road's `<planView>`: its geometries, in increasing s and chained end to start.
     fn plan_view(&self, node: Node, road: &mut Road) -> Result<()> {
         let plan_view = element(node, "planView")
@@ -445,6 +488,10 @@ impl Ctx<'_, '_> {
 
     fn road(&self, node: Node) -> Result<Road> {
         let id = self.req_str(node, "id")?.to_string();
+        if id.trim().is_empty() {
+            return Err(self.err(node, "<road> attribute `id` is empty; expected an id"));
+        }
+        self.enumerated(node, "rule", &["RHT", "LHT"])?;
         let junction = match node.attribute("junction").map(str::trim) {
             None | Some("-1") | Some("") => None,
             Some(j) => Some(j.to_string()),
@@ -570,11 +617,21 @@ impl Ctx<'_, '_> {
                     ),
                 ));
             }
+            if let Some(previous) = road.lane_offsets.last()
+                && offset.s <= previous.s
+            {
+                return Err(self.err(
+                    o,
+                    format!(
+                        "road {}: <laneOffset> at s = {} comes after the previous one, at s = \
+                         {}; expected lane offsets in increasing s",
+                        road.id, offset.s, previous.s
+                    ),
+                ));
+            }
             offset_nodes.push((offset.s, o));
             road.lane_offsets.push(offset);
         }
-        sort_by_s(&mut road.lane_offsets, |o| o.s);
-        sort_by_s(&mut offset_nodes, |(s, _)| *s);
         if let Some((k, step)) = lane_continuity::first_step(&road.lane_offsets, false) {
             return Err(self.err(
                 offset_nodes[k].1,
@@ -903,6 +960,16 @@ impl Ctx<'_, '_> {
                 }
             }
         }
+        if sec.center.is_none() {
+            return Err(self.err(
+                node,
+                format!(
+                    "laneSection at s={}: no <center> lane; expected <center><lane id=\"0\" \
+                     .../></center> (the reference line the lanes are counted from)",
+                    sec.s
+                ),
+            ));
+        }
         sec.left.sort_by_key(|l| l.id);
         sec.right.sort_by_key(|l| -l.id);
         for side in [&sec.left, &sec.right] {
@@ -924,6 +991,7 @@ impl Ctx<'_, '_> {
 
     fn lane(&self, node: Node) -> Result<Lane> {
         let id = self.req_i32(node, "id")?;
+        self.enumerated(node, "level", &["true", "false", "0", "1"])?;
         let kind = self.req_str(node, "type")?;
         if !LaneType::is_standard(kind) {
             return Err(self.err(
@@ -978,8 +1046,13 @@ impl Ctx<'_, '_> {
                 }
                 "roadMark" => lane.road_marks.push(RoadMarkRecord {
                     s_offset: self.req_f64(child, "sOffset")?,
-                    kind: RoadMark::from_name(self.req_str(child, "type")?),
-                    color: child.attribute("color").map(str::to_string),
+                    kind: RoadMark::from_name(
+                        self.enumerated(child, "type", &RoadMark::standard_names())?
+                            .unwrap_or(self.req_str(child, "type")?),
+                    ),
+                    color: self
+                        .enumerated(child, "color", &ROAD_MARK_COLORS)?
+                        .map(str::to_string),
                     width: self.opt_f64(child, "width")?,
                 }),
                 "speed" => lane.speeds.push(LaneSpeed {

@@ -420,6 +420,70 @@ fn geometries_out_of_order_a_late_first_section_and_a_misspelt_lane_type_are_ref
 }
 
 #[test]
+fn misspelt_enumerations_and_missing_structure_are_refused_with_their_line() {
+    let road = straight("a", 0.0, 40.0, "", "");
+    let with_mark = road.replace(
+        "<width sOffset=\"0\" a=\"3.5\" b=\"0\" c=\"0\" d=\"0\"/></lane>\n  <lane id=\"-2\"",
+        "<width sOffset=\"0\" a=\"3.5\" b=\"0\" c=\"0\" d=\"0\"/>\
+         <roadMark sOffset=\"0\" type=\"broken\" color=\"white\"/></lane>\n  <lane id=\"-2\"",
+    );
+    assert_ne!(with_mark, road);
+    parse_xodr(&document(&with_mark), "test.xodr").expect("a valid road mark");
+    let cases: [(String, &str, &str); 8] = [
+        (
+            road.replacen("junction=\"-1\"", "junction=\"-1\" rule=\"RTH\"", 1),
+            "`rule` is `RTH`",
+            "rule=",
+        ),
+        (
+            road.replacen("junction=\"-1\"", "junction=\"j9\"", 1),
+            "junction `j9`",
+            "junction=\"j9\"",
+        ),
+        (
+            road.replacen("id=\"a\"", "id=\"\"", 1),
+            "`id` is empty",
+            "<road",
+        ),
+        (
+            with_mark.replace("type=\"broken\"", "type=\"brokn\""),
+            "`type` is `brokn`",
+            "brokn",
+        ),
+        (
+            with_mark.replace("color=\"white\"", "color=\"whte\""),
+            "`color` is `whte`",
+            "whte",
+        ),
+        (
+            road.replacen("type=\"driving\"", "type=\"driving\" level=\"maybe\"", 1),
+            "`level` is `maybe`",
+            "maybe",
+        ),
+        (
+            road.replace("<center><lane id=\"0\" type=\"none\"/></center>", ""),
+            "no <center> lane",
+            "<laneSection",
+        ),
+        (
+            road.replace(
+                "<lanes>",
+                "<lanes><laneOffset s=\"20\" a=\"0\" b=\"0\" c=\"0\" d=\"0\"/>\n\
+                 <laneOffset s=\"0\" a=\"0\" b=\"0\" c=\"0\" d=\"0\"/>",
+            ),
+            "<laneOffset> at s = 0 comes after the previous one",
+            "<laneOffset s=\"0\"",
+        ),
+    ];
+    for (body, expected, at) in cases {
+        let text = document(&body);
+        let (line, message) = parse_err(&text);
+        assert!(message.contains(expected), "{expected}: {message}");
+        assert_eq!(line, line_of(&text, at), "{expected}: {message}");
+    }
+}
+
+#[test]
 fn lane_records_out_of_order_are_refused() {
     let road = |records: &str| {
         document(&format!(

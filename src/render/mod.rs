@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use plotters::prelude::*;
 
 use crate::error::{Error, Result};
-use crate::io::atomic_write_with;
+use crate::io::atomic_write;
 use crate::map::{Map, RoadMark};
 use crate::scene::{AgentRole, Scene, SceneAgent};
 
@@ -182,19 +182,51 @@ fn render(map: &Map, scene: Option<&Scene>, path: &Path, opts: &RenderOptions) -
     let view = View::fit(map, opts)?;
     let size = (opts.width_px, view.height_px);
     let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
-    match ext {
-        "svg" => atomic_write_with(path, |tmp| {
-            let backend = SVGBackend::new(tmp, size);
-            draw(backend.into_drawing_area(), map, scene, &view, opts)
-                .map_err(|e| drawing_error(path, e))
-        }),
+    // Drawn in memory and written through the one writer, so a failed write (a full disk)
+    // is said as the file system says it, of the output.
+    let bytes = match ext {
+        "svg" => {
+            let mut svg = String::new();
+            draw(
+                SVGBackend::with_string(&mut svg, size).into_drawing_area(),
+                map,
+                scene,
+                &view,
+                opts,
+            )
+            .map_err(|e| drawing_error(path, e))?;
+            svg.into_bytes()
+        }
         // `.png`: `check_target` let no other extension through.
-        _ => atomic_write_with(path, |tmp| {
-            let backend = BitMapBackend::new(tmp, size);
-            draw(backend.into_drawing_area(), map, scene, &view, opts)
-                .map_err(|e| drawing_error(path, e))
-        }),
-    }
+        _ => {
+            let mut rgb = vec![0u8; size.0 as usize * size.1 as usize * 3];
+            draw(
+                BitMapBackend::with_buffer(&mut rgb, size).into_drawing_area(),
+                map,
+                scene,
+                &view,
+                opts,
+            )
+            .map_err(|e| drawing_error(path, e))?;
+            png_bytes(&rgb, size).map_err(|e| drawing_error(path, e))?
+        }
+    };
+    atomic_write(path, &bytes)
+}
+
+/// An RGB image of `width` x `height` as PNG.
+fn png_bytes(
+    rgb: &[u8],
+    (width, height): (u32, u32),
+) -> std::result::Result<Vec<u8>, png::EncodingError> {
+    let mut out = Vec::new();
+    let mut encoder = png::Encoder::new(&mut out, width, height);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    let mut writer = encoder.write_header()?;
+    writer.write_image_data(rgb)?;
+    writer.finish()?;
+    Ok(out)
 }
 
 /// `PREFIX.png` and `PREFIX.svg` for an output prefix.

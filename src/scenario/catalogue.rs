@@ -82,9 +82,9 @@ pub fn load_families(dir: &Path) -> Result<Vec<LogicalScenario>> {
                 path.display().to_string(),
                 "the family",
                 format!(
-                    "`{}` ({} set) draws the same scenarios as `{}` ({} set): only the name, \
-                     description or set differ, and its numbers by at most {} %; expected each \
-                     family once",
+                    "`{}` ({} set) draws the same scenarios as `{}` ({} set), or a part of \
+                     them: only the name, description or set differ, and each number and range \
+                     lies within the other's (to {} %); expected each family once",
                     family.name,
                     family.set.name(),
                     twin.name,
@@ -327,6 +327,16 @@ mod tests {
             .expect_err("a near copy")
             .to_string();
         assert!(err.contains("draws the same scenarios as"), "{err}");
+        // A range narrowed draws a part of the family's scenarios, in either set.
+        for set in ["train", "ood"] {
+            let narrowed = text
+                .replace("name = \"brake_fast_lane\"", "name = \"nudged\"")
+                .replace("set = \"train\"", &format!("set = \"{set}\""))
+                .replace("station = [250, 320]", "station = [260, 300]");
+            std::fs::write(dir.path().join("nudged.toml"), narrowed).expect("write");
+            let err = load_families(dir.path()).expect_err("a part").to_string();
+            assert!(err.contains("or a part of"), "{err}");
+        }
     }
 
     /// A family whose set label disagrees with the set folder it lies in is refused there.

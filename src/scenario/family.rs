@@ -168,26 +168,41 @@ fn default_duration() -> f64 {
 /// scenarios: far below any difference a family means (ranges differ by metres or m/s).
 pub const NEAR_COPY_RELATIVE: f64 = 0.01;
 
-/// `a` and `b` alike in shape and strings, numbers within [`NEAR_COPY_RELATIVE`].
-fn nearly_equal(a: &serde_json::Value, b: &serde_json::Value) -> bool {
+/// Whether everything `a` draws, `b` draws too: alike in shape and strings, each number of
+/// `a` equal to `b`'s or inside `b`'s range, each range (`[low, high]`) of `a` inside `b`'s,
+/// to within [`NEAR_COPY_RELATIVE`].
+fn within(a: &serde_json::Value, b: &serde_json::Value) -> bool {
     use serde_json::Value;
-    match (a, b) {
-        (Value::Number(x), Value::Number(y)) => {
-            let (x, y) = (
-                x.as_f64().unwrap_or(f64::NAN),
-                y.as_f64().unwrap_or(f64::NAN),
-            );
-            (x - y).abs() <= NEAR_COPY_RELATIVE * x.abs().max(y.abs()) + 1e-9
+    let slack = |x: f64, y: f64| NEAR_COPY_RELATIVE * x.abs().max(y.abs()) + 1e-9;
+    let inside =
+        |x: f64, (low, high): (f64, f64)| x >= low - slack(x, low) && x <= high + slack(x, high);
+    match (a, b, range(a), range(b)) {
+        (_, _, Some((low, high)), Some(other)) => inside(low, other) && inside(high, other),
+        (Value::Number(x), _, _, Some(other)) => x.as_f64().is_some_and(|x| inside(x, other)),
+        (Value::Number(x), Value::Number(y), _, _) => match (x.as_f64(), y.as_f64()) {
+            (Some(x), Some(y)) => (x - y).abs() <= slack(x, y),
+            _ => false,
+        },
+        (Value::Array(x), Value::Array(y), _, _) => {
+            x.len() == y.len() && x.iter().zip(y).all(|(p, q)| within(p, q))
         }
-        (Value::Array(x), Value::Array(y)) => {
-            x.len() == y.len() && x.iter().zip(y).all(|(p, q)| nearly_equal(p, q))
-        }
-        (Value::Object(x), Value::Object(y)) => {
+        (Value::Object(x), Value::Object(y), _, _) => {
             x.len() == y.len()
                 && x.iter()
-                    .all(|(k, v)| y.get(k).is_some_and(|w| nearly_equal(v, w)))
+                    .all(|(k, v)| y.get(k).is_some_and(|w| within(v, w)))
         }
         _ => a == b,
+    }
+}
+
+/// A drawn range `[low, high]` (two numbers, in order).
+fn range(value: &serde_json::Value) -> Option<(f64, f64)> {
+    match value.as_array()?.as_slice() {
+        [low, high] => {
+            let (low, high) = (low.as_f64()?, high.as_f64()?);
+            (low <= high).then_some((low, high))
+        }
+        _ => None,
     }
 }
 
@@ -202,9 +217,10 @@ impl FamilySet {
 }
 
 impl LogicalScenario {
-    /// Whether `other` draws (nearly) the same concrete scenarios: everything but the name,
-    /// the description and the set agrees, numbers to within [`NEAR_COPY_RELATIVE`]. A bound
-    /// nudged by a hair does not make another family.
+    /// Whether one of `self` and `other` draws the other's concrete scenarios or a part of
+    /// them: everything but the name, the description and the set agrees, each number and
+    /// range of one lying within the other's (to [`NEAR_COPY_RELATIVE`]). A bound nudged by a
+    /// hair, or a range narrowed, does not make another family.
     pub fn draws_like(&self, other: &Self) -> bool {
         let drawn = |family: &Self| {
             let mut value = serde_json::to_value(family).unwrap_or_default();
@@ -215,7 +231,8 @@ impl LogicalScenario {
             }
             value
         };
-        nearly_equal(&drawn(self), &drawn(other))
+        let (a, b) = (drawn(self), drawn(other));
+        within(&a, &b) || within(&b, &a)
     }
 
     /// Every value a concrete scenario of this family draws, by the name it is recorded under

@@ -172,7 +172,7 @@ fn check_excitation(recordings: &Recordings) -> Result<()> {
         .flat_map(|t| t.speed.iter().copied())
         .fold(0.0, f64::max);
     if top >= MIN_TOP_SPEED {
-        return check_commands_vary(recordings);
+        return super::command_checks::check_commands(recordings);
     }
     Err(Error::invalid(
         &recordings.source,
@@ -183,55 +183,6 @@ fn check_excitation(recordings: &Recordings) -> Result<()> {
              {MIN_TOP_SPEED} m/s)"
         ),
     ))
-}
-
-/// Refuses a command column that holds one value on every row while the motion it drives
-/// changes (speeds by more than 2 m/s, headings by more than 0.2 rad): the simulator replays
-/// the recorded commands, and a column left at zero (or never filled) carries none.
-fn check_commands_vary(recordings: &Recordings) -> Result<()> {
-    use crate::data::RecordedTrack;
-    type Column = fn(&RecordedTrack) -> &[f64];
-    type Change = fn(&RecordedTrack) -> f64;
-    fn range(values: &[f64]) -> f64 {
-        values.iter().copied().fold(f64::MIN, f64::max)
-            - values.iter().copied().fold(f64::MAX, f64::min)
-    }
-    let speed_range: Change = |t| range(&t.speed);
-    let turned: Change = |t| range(&super::windows::unwrap(&t.heading));
-    let checks: [(&str, Column, Change, f64, &str); 2] = [
-        (
-            "accel_cmd",
-            |t| &t.accel_cmd,
-            speed_range,
-            2.0,
-            "speeds change",
-        ),
-        ("steer_cmd", |t| &t.steer_cmd, turned, 0.2, "vehicles turn"),
-    ];
-    for (name, command, motion, moves, what) in checks {
-        let first = recordings
-            .tracks
-            .iter()
-            .find_map(|t| command(t).first().copied());
-        let constant = recordings
-            .tracks
-            .iter()
-            .all(|t| command(t).iter().all(|&v| Some(v) == first));
-        let moving = recordings.tracks.iter().any(|t| motion(t) > moves);
-        if constant && moving {
-            return Err(Error::invalid(
-                &recordings.source,
-                format!("column `{name}`"),
-                format!(
-                    "is {} on every row, yet the {what}: sim2real replays the recorded \
-                     commands, and this column carries none; expected the commands the \
-                     vehicles received",
-                    first.unwrap_or_default()
-                ),
-            ));
-        }
-    }
-    Ok(())
 }
 
 fn split(recordings: &Recordings, options: &Sim2RealOptions) -> Result<Split> {
@@ -715,32 +666,4 @@ fn choose(
         chosen.push((pair, c));
     }
     chosen
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::sim2real::generator::{GeneratorConfig, generate};
-
-    /// A command column left at zero while the vehicles brake and turn is refused by name;
-    /// the generated recordings, whose commands vary, pass.
-    #[test]
-    fn a_command_column_that_never_changes_is_refused() {
-        let mut config = GeneratorConfig::with_effect(None, 3);
-        config.tracks = 3;
-        let recordings = generate(&config, &crate::backend::Backend::reference_device(false));
-        check_commands_vary(&recordings).expect("varying commands");
-        for column in ["accel_cmd", "steer_cmd"] {
-            let mut flat = recordings.clone();
-            for track in &mut flat.tracks {
-                let values = match column {
-                    "accel_cmd" => &mut track.accel_cmd,
-                    _ => &mut track.steer_cmd,
-                };
-                values.iter_mut().for_each(|v| *v = 0.0);
-            }
-            let err = check_commands_vary(&flat).expect_err(column).to_string();
-            assert!(err.contains(&format!("column `{column}`")), "{err}");
-        }
-    }
 }

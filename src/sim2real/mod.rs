@@ -7,6 +7,7 @@
 //! parsimony selection on held-out tracks (pairs when one effect is not enough) → report.
 
 pub mod a9;
+mod command_checks;
 pub mod command_timing;
 pub mod discover;
 

@@ -211,7 +211,10 @@ fn refuse_oversized<M: Module>(module: &M, path: &Path) -> Result<()> {
 /// every parameter must be finite.
 pub fn load_module<M: Module>(module: M, path: &Path) -> Result<M> {
     refuse_oversized(&module, path)?;
-    let record = ModuleRecord::from_bytes(read_bytes(path)?).map_err(|e| record_error(path, e))?;
+    let bytes = crate::io::read_bytes(path, crate::io::Format::Parameters)?;
+    verify_recorded_digest(path, &bytes)?;
+    let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(bytes))
+        .map_err(|e| record_error(path, e))?;
     let module = module
         .try_load_record(record)
         .map_err(|e| load_error(path, &e.to_string()))?;
@@ -281,8 +284,39 @@ pub fn resume_point(run_dir: &Path, resume: bool) -> Result<Option<PathBuf>> {
             run_dir.display(),
             run_dir.join("checkpoints").join(LATEST).display()
         ))),
-        (None, false) => Ok(None),
+        (None, false) => {
+            refuse_files_without_a_run(run_dir)?;
+            Ok(None)
+        }
     }
+}
+
+/// Refuses a new run's folder that holds anything but an empty `checkpoints/`: without a
+/// checkpoint there is no run there, so a `config.toml` or `curves.csv` is the user's (a run
+/// that fails before its first checkpoint removes its own) and would be replaced.
+fn refuse_files_without_a_run(run_dir: &Path) -> Result<()> {
+    if !run_dir.is_dir() {
+        return Ok(());
+    }
+    let foreign: Vec<String> = crate::io::list_folder(run_dir)?
+        .iter()
+        .filter_map(|p| {
+            let name = p.file_name()?.to_string_lossy().into_owned();
+            let empty_checkpoints = name == "checkpoints"
+                && crate::io::list_folder(p).is_ok_and(|entries| entries.is_empty());
+            (!empty_checkpoints).then(|| if p.is_dir() { format!("{name}/") } else { name })
+        })
+        .collect();
+    if foreign.is_empty() {
+        return Ok(());
+    }
+    Err(Error::InvalidArgument(format!(
+        "{}: holds files but no run ({}); a run writes config.toml, curves.csv and \
+         checkpoints/ there, and would replace them. Choose an empty or new folder (or, if a \
+         run killed before its first checkpoint left them, remove them)",
+        run_dir.display(),
+        foreign.join(", ")
+    )))
 }
 
 /// Whether `run_dir` holds at least one checkpoint (its `latest` pointer exists).
@@ -326,9 +360,16 @@ pub fn save(
     );
     if let Err(e) = written {
         // A full disk or a failed write: leave nothing half-written beside the checkpoints
-        // (best effort, the write's error is the one to report).
+        // (best effort, the write's error is the one to report), and name the checkpoint,
+        // not its temporary folder.
         let _ = crate::io::remove_folder(&tmp);
-        return Err(e);
+        return Err(match e {
+            Error::Io { path, source } => match path.strip_prefix(&tmp) {
+                Ok(file) => Error::io(dir.join(file), source),
+                Err(_) => Error::Io { path, source },
+            },
+            other => other,
+        });
     }
     // A re-run of the same iteration (after a resume) replaces the old folder.
     crate::io::remove_folder(&dir)?;
@@ -421,27 +462,41 @@ fn verify_checksums(dir: &Path, state: &LoopState) -> Result<()> {
     Ok(())
 }
 
-/// Checks the policy file `policy` (the checkpoint's own, or the finished copy beside its
-/// run) against the sha256 that the checkpoint in `dir` recorded for its policy: weights
-/// changed after training would be evaluated as the trained ones. Checkpoints written before
-/// checksums were kept are not checked.
-pub fn verify_policy(dir: &Path, state: &LoopState, policy: &Path) -> Result<()> {
-    let Some(expected) = state.checksums.get(POLICY) else {
+/// Checks the tensor file `path`, read as `bytes`, against the sha256 its run recorded: a
+/// checkpoint's own files against its `state.json`, a finished run's `policy.bpk` (a copy of
+/// its last checkpoint's) against its newest checkpoint's. Weights changed after training
+/// would otherwise pass for the trained ones wherever they are loaded (evaluation, a warm
+/// start, a KL reference). Files without a record (a `models/` folder, checkpoints written
+/// before checksums were kept) are not checked.
+fn verify_recorded_digest(path: &Path, bytes: &[u8]) -> Result<()> {
+    let folder = path.parent().unwrap_or(Path::new("."));
+    let Some(name) = path.file_name().and_then(|n| n.to_str()) else {
         return Ok(());
     };
-    let actual = sha256_hex(&crate::io::read_bytes(
-        policy,
-        crate::io::Format::Parameters,
-    )?);
+    let recorded = if folder.join(STATE).is_file() {
+        Some(folder.to_path_buf())
+    } else if name == POLICY {
+        latest(folder)?
+    } else {
+        None
+    };
+    let Some(dir) = recorded else {
+        return Ok(());
+    };
+    let state = read_state(&dir)?;
+    let Some(expected) = state.checksums.get(name) else {
+        return Ok(());
+    };
+    let actual = sha256_hex(bytes);
     if &actual == expected {
         return Ok(());
     }
     Err(Error::invalid(
-        policy.display().to_string(),
+        path.display().to_string(),
         "sha256",
         format!(
-            "is {actual}, but {} recorded {expected} for the policy its run saved: the weights \
-             were changed or corrupted after training",
+            "is {actual}, but {} recorded {expected} when its run saved it: the weights were \
+             changed or corrupted after training",
             dir.join(STATE).display()
         ),
     ))

@@ -348,8 +348,9 @@ impl Default for ShapingConfig {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ReferenceConfig {
-    /// A policy checkpoint (`policy.bpk`) of the same model config, relative to the run file.
-    /// Exactly one of `checkpoint` and `init` names the reference.
+    /// A policy checkpoint (`policy.bpk`, or a model or run folder holding one) of the same
+    /// model config, relative to the run file. Exactly one of `checkpoint` and `init` names
+    /// the reference.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub checkpoint: Option<PathBuf>,
     /// The reference is the warm start itself, built as `[init]` builds it (relative-motion
@@ -851,8 +852,11 @@ impl TrainConfig {
         if !(positive(p.clip) && p.clip < 1.0) {
             return refuse("ppo.clip", "expected a ratio clip in (0, 1)");
         }
-        if !unit(p.gamma) || !unit(p.gae_lambda) {
-            return refuse("ppo.gamma", "gamma and gae_lambda must lie in [0, 1]");
+        if !unit(p.gamma) {
+            return refuse("ppo.gamma", "expected a discount in [0, 1]");
+        }
+        if !unit(p.gae_lambda) {
+            return refuse("ppo.gae_lambda", "expected a GAE lambda in [0, 1]");
         }
         if !p
             .noise_correlation

@@ -117,6 +117,8 @@ fn read_from_folder(field: &str, relative: &Path) -> bool {
             let name = name.to_lowercase();
             name.ends_with(".xml") || name.ends_with(".xml.gz")
         }
+        // A model or run folder as the KL reference: its policy alone.
+        "reference.checkpoint" => relative == Path::new("policy.bpk"),
         _ => true,
     }
 }

@@ -122,9 +122,15 @@ impl TrainingData {
             scenarios.truncate(limit);
         }
         if with_longtail && scenarios.is_empty() {
-            return Err(Error::InvalidArgument(
-                "alpha > 0 needs long-tail training scenarios, but none were loaded".into(),
-            ));
+            let whence = match (&config.longtail_dir, config.longtail_limit) {
+                (_, Some(0)) => "`data.longtail_limit` is 0".to_string(),
+                (Some(dir), _) => format!("{} holds none", dir.join("train").display()),
+                (None, _) => "`data.longtail_generate` is 0".to_string(),
+            };
+            return Err(Error::InvalidArgument(format!(
+                "alpha > 0 needs long-tail training scenarios, but {whence}; expected the \
+                 train/ set of `rtr scenarios generate`"
+            )));
         }
         let longtail = scenarios
             .into_iter()

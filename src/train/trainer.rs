@@ -105,8 +105,15 @@ fn kl_reference(
     // TrainConfig::validate refuses every other combination; a config built in code gets the
     // same message here.
     match (&r.checkpoint, r.init, &config.init, r.std_from_logs) {
-        (Some(file), false, _, calibrate) => {
-            let policy = checkpoint::load_module(blank(), file)?;
+        (Some(path), false, _, calibrate) => {
+            // A model or run folder stands for its policy, as `[init] policy` takes one.
+            let file = if path.is_dir() {
+                path.join("policy.bpk")
+            } else {
+                path.clone()
+            };
+            let policy = checkpoint::load_module(blank(), &file)
+                .map_err(|e| e.in_field("reference.checkpoint"))?;
             if calibrate {
                 std_from_logs("reference", [1.0, 1.0], policy, data, config, device)
             } else {

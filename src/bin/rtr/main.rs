@@ -114,6 +114,7 @@ fn exit_with(e: clap::Error) -> ! {
 
 fn main() -> ExitCode {
     rtr::allocator::tune_for_tensors();
+    rtr::io::release_locks_on_signal();
     match run(parse_cli()).and_then(|()| rtr::io::console::check_stdout()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

@@ -1,6 +1,6 @@
 //! Clips read together are checked as a set: every scene id must be unique, and a clip that
 //! repeats another's driving under another name (a renamed copy, a copy cut shorter in time
-//! or moved as a whole, another planning problem over the same traffic) is found, so that its vehicles are read
+//! or moved or turned as a whole, another planning problem over the same traffic) is found, so that its vehicles are read
 //! once: twice, a training set would weigh them double and an evaluation count them twice.
 
 use std::collections::{BTreeSet, HashMap};
@@ -10,6 +10,7 @@ use super::CommonRoadClip;
 use crate::data::track::{Track, TrackSample};
 use crate::error::{Error, Result};
 use crate::geometry::wrap_angle;
+use crate::vehicle::AgentState;
 
 /// How closely a run of samples must repeat another to be the same recorded driving: speeds
 /// and headings within a millimetre per second and a tenth of a milliradian, positions apart
@@ -18,6 +19,9 @@ use crate::geometry::wrap_angle;
 const SAME_SPEED: f64 = 1e-3;
 const SAME_HEADING_RAD: f64 = 1e-4;
 const SAME_OFFSET_M: f64 = 1e-3;
+/// A rotated copy's positions are new numbers, rounded where they were written: its distances
+/// from its first sample must agree within a centimetre.
+const SAME_DISTANCE_M: f64 = 1e-2;
 /// A track that travels less than this (m) is a standing vehicle: any offset would match it,
 /// so it must repeat the other's positions themselves.
 const STANDING_M: f64 = 1.0;
@@ -148,9 +152,14 @@ fn holds_run(track: &Track, from: usize, run: &Track) -> bool {
         return false;
     }
     let pairs = || track.samples[from..].iter().zip(&run.samples);
+    let (p0, q0) = (&track.samples[from].state, &run.samples[0].state);
+    // Speeds and turns alike: headings apart by one constant angle (a copy rotated as a
+    // whole turns as its original did).
     let same_motion = pairs().all(|(p, q)| {
+        let turned =
+            wrap_angle(p.state.heading - p0.heading) - wrap_angle(q.state.heading - q0.heading);
         (p.state.speed - q.state.speed).abs() <= SAME_SPEED
-            && wrap_angle(p.state.heading - q.state.heading).abs() <= SAME_HEADING_RAD
+            && wrap_angle(turned).abs() <= 2.0 * SAME_HEADING_RAD
     });
     if !same_motion {
         return false;
@@ -161,7 +170,15 @@ fn holds_run(track: &Track, from: usize, run: &Track) -> bool {
         let d = offset(p, q);
         (d[0] - first[0]).abs() <= SAME_OFFSET_M && (d[1] - first[1]).abs() <= SAME_OFFSET_M
     });
-    constant && (travels(run) || first[0].hypot(first[1]) <= SAME_OFFSET_M)
+    let rotated = || {
+        let from_start =
+            |s: &TrackSample, s0: &AgentState| (s.state.x - s0.x).hypot(s.state.y - s0.y);
+        pairs().all(|(p, q)| (from_start(p, p0) - from_start(q, q0)).abs() <= SAME_DISTANCE_M)
+    };
+    if !travels(run) {
+        return constant && first[0].hypot(first[1]) <= SAME_OFFSET_M;
+    }
+    constant || rotated()
 }
 
 /// Whether a track moves further than [`STANDING_M`] from its first position.

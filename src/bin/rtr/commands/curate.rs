@@ -37,7 +37,7 @@ pub fn run(args: CurateArgs) -> Result<()> {
         Inputs::new().with("--data", args.data.dir()),
         "--checkpoint",
         [&args.checkpoint],
-    );
+    )?;
     let _claim = claim_output_file(&args.out, "--out", &inputs, &["txt", "list"])?;
     let device = args.backend.device(false)?;
     let trained = TrainedPolicy::load(&args.checkpoint, &device)?;

@@ -57,7 +57,7 @@ pub fn run(args: DownstreamArgs) -> Result<()> {
         Inputs::new().with("--data", args.data.dir()),
         "--checkpoint",
         &args.checkpoints,
-    );
+    )?;
     let _claim = match &args.out {
         Some(out) => {
             let claim = claim_output_folder(out, "--out", &inputs)?;

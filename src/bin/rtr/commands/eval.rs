@@ -73,7 +73,7 @@ fn claim_output(args: &EvalArgs) -> Result<Option<OutputClaim>> {
         rtr::io::check_input_folder(dir, "--scenarios", SCENARIO_FOLDER)?;
     }
     let inputs =
-        rtr::eval::trained::with_run_inputs(Inputs::new(), "--checkpoint", &args.checkpoints)
+        rtr::eval::trained::with_run_inputs(Inputs::new(), "--checkpoint", &args.checkpoints)?
             .with_all("--scenarios", &args.scenarios)
             .with_all("--commonroad", &args.commonroad)
             .with("--data", args.data.dir());

@@ -64,7 +64,7 @@ fn average(checkpoints: &[PathBuf], out: &std::path::Path) -> Result<()> {
         }
     }
     let inputs =
-        rtr::eval::trained::with_run_inputs(rtr::io::Inputs::new(), "--checkpoint", checkpoints);
+        rtr::eval::trained::with_run_inputs(rtr::io::Inputs::new(), "--checkpoint", checkpoints)?;
     if let Some(run) = rtr::train::checkpoint::enclosing_run(out) {
         return Err(Error::InvalidArgument(format!(
             "--out {}: lies in the training run {}, whose trainer replaces and prunes what is \

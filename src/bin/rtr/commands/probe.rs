@@ -79,7 +79,7 @@ pub fn run(command: ProbeCommand) -> Result<()> {
         rtr::io::Inputs::new().with_all("--config", &args.config),
         "--warm-start",
         &args.warm_start,
-    );
+    )?;
     let _claim = match &args.out {
         Some(out) => Some(rtr::io::claim_output_folder(out, "--out", &inputs)?),
         None => None,
@@ -145,6 +145,7 @@ fn default_init(policy: PathBuf) -> InitConfig {
 
 /// The run file beside the warm start, checked as an input of --warm-start.
 fn check_warm_start(warm_start: &std::path::Path) -> Result<PathBuf> {
+    rtr::io::check_input_path(warm_start, "--warm-start")?;
     let run_file = warm_start_config(warm_start)?;
     rtr::io::check_input_file(&run_file, "--warm-start")?;
     // The policy itself, before any scenario is drawn.

@@ -76,7 +76,7 @@ pub(super) enum Source {
 
 impl RenderArgs {
     /// The files and folders the command reads, for the output checks.
-    pub(super) fn inputs(&self) -> Inputs {
+    pub(super) fn inputs(&self) -> Result<Inputs> {
         let inputs = Inputs::new()
             .with("--data", self.data.dir())
             .with_all("--scenario", &self.scenario)
@@ -93,7 +93,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         width_px: args.width.unwrap_or(PICTURE_WIDTH_PX),
         ..Default::default()
     };
-    let (targets, _claims) = image_targets(&args.out, &opts, &args.inputs())?;
+    let (targets, _claims) = image_targets(&args.out, &opts, &args.inputs()?)?;
     let scene = match source(&args)? {
         Source::Scenario(scenario) => return render_scenario(&scenario, &opts, &targets),
         Source::Recorded { scene, .. } => scene,

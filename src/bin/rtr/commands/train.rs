@@ -114,7 +114,7 @@ pub fn run(args: TrainArgs) -> Result<()> {
         |inputs, (field, path)| inputs.with(field, path),
     );
     let _claim = claim_output_folder(&out, "--out", &inputs)?;
-    refuse_foreign_folder(&out)?;
+    // A new run's folder holding files but no run is refused here too.
     rtr::train::checkpoint::resume_point(&out, args.resume)?;
     check_named_inputs(&config, args.resume)?;
     let dataset = args.data.load()?;
@@ -171,9 +171,6 @@ pub fn run(args: TrainArgs) -> Result<()> {
     Ok(())
 }
 
-/// Refuses an `--out` folder that holds files but no run: a new run would write its
-/// config.toml and curves.csv over whatever is there. A folder a failed run left (its
-/// config.toml and curves.csv only) is fine.
 /// The files and folders the run file names, each there and of a readable kind, checked
 /// before the data loads: a typo is named at once, not after the loading. A resumed run
 /// does not read its warm start again.
@@ -187,34 +184,6 @@ fn check_named_inputs(config: &rtr::train::TrainConfig, resume: bool) -> Result<
         rtr::io::check_input_path(&path, "path").map_err(|e| e.in_field(field))?;
     }
     Ok(())
-}
-
-fn refuse_foreign_folder(out: &Path) -> Result<()> {
-    if !out.is_dir() || rtr::train::checkpoint::has_checkpoint(out) {
-        return Ok(());
-    }
-    // A run's own entries, each of its own type: a folder named config.toml is not one.
-    let runs_own = |path: &Path, name: &str| match name {
-        "config.toml" | "curves.csv" => path.is_file(),
-        "checkpoints" => path.is_dir(),
-        _ => false,
-    };
-    let foreign: Vec<String> = rtr::io::list_folder(out)?
-        .iter()
-        .filter_map(|p| {
-            let name = p.file_name()?.to_string_lossy().into_owned();
-            (!runs_own(p, &name)).then(|| if p.is_dir() { format!("{name}/") } else { name })
-        })
-        .collect();
-    if foreign.is_empty() {
-        return Ok(());
-    }
-    Err(Error::InvalidArgument(format!(
-        "--out {}: holds files that are not a run's ({}); a run writes config.toml, \
-         curves.csv and checkpoints/ there. Choose an empty or new folder",
-        out.display(),
-        foreign.join(", ")
-    )))
 }
 
 /// A fresh run that failed before its first checkpoint (bad data found late, divergence at the
