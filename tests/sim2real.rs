@@ -548,6 +548,32 @@ fn no_finding_makes_held_out_error_worse_whatever_the_iterations() {
     }
 }
 
+/// The report of `effect` alone (no discovery) fitted to `recordings` with the commands read
+/// as `declared` (from the data when `None`), and its summary; `effect` must be found first.
+fn effect_alone(
+    recordings: &rtr::data::Recordings,
+    effect: Effect,
+    declared: Option<rtr::sim2real::CommandTiming>,
+    case: &str,
+) -> (Report, String) {
+    let options = Sim2RealOptions {
+        effects: vec![effect],
+        discover: false,
+        command_timing: declared,
+        ..Sim2RealOptions::default()
+    };
+    let report = identify(recordings, &options, &|_| {})
+        .expect("identification runs")
+        .report;
+    let summary = report.summary().join("\n");
+    let first = report
+        .findings
+        .first()
+        .unwrap_or_else(|| panic!("{case}: nothing found\n{summary}"));
+    assert_eq!(first.effect, Some(effect), "{case}\n{summary}");
+    (report, summary)
+}
+
 /// On recordings whose noise, sample rate and command timing differ from the generator's
 /// defaults (commands held per period, or sampled from a controller ten times faster than the
 /// log), the reported interval of each lag and dead time covers the truth whatever the
@@ -575,27 +601,10 @@ fn time_constants_hold_under_other_rates_noise_and_command_timing() {
         let name = effect.params()[0].name;
         let case = format!("{effect} at {period} s, noise x{noise}, commands {timing:?}");
         let fitted = |declared: Option<CommandTiming>| {
-            let options = Sim2RealOptions {
-                effects: vec![effect],
-                discover: false,
-                command_timing: declared,
-                ..Sim2RealOptions::default()
-            };
-            let report = identify(&recordings, &options, &|_| {})
-                .expect("identification runs")
-                .report;
-            let summary = report.summary().join("\n");
-            let first = report
-                .findings
-                .first()
-                .unwrap_or_else(|| panic!("{case}: nothing found\n{summary}"));
-            assert_eq!(first.effect, Some(effect), "{case}\n{summary}");
-            (
-                first.params[name],
-                first.params_interval[name],
-                report,
-                summary,
-            )
+            let (report, summary) = effect_alone(&recordings, effect, declared, &case);
+            let first = &report.findings[0];
+            let (value, interval) = (first.params[name], first.params_interval[name]);
+            (value, interval, report, summary)
         };
 
         let (value, [low, high], report, summary) = fitted(None);
@@ -641,22 +650,8 @@ fn sideslip_under_sampled_commands_is_not_fitted_long() {
     let recordings = generate(&config, &device());
     let truth = typical(Effect::Sideslip)[0];
     let fitted = |declared: Option<CommandTiming>| {
-        let options = Sim2RealOptions {
-            effects: vec![Effect::Sideslip],
-            discover: false,
-            command_timing: declared,
-            ..Sim2RealOptions::default()
-        };
-        let report = identify(&recordings, &options, &|_| {})
-            .expect("identification runs")
-            .report;
-        let summary = report.summary().join("\n");
-        let first = report
-            .findings
-            .first()
-            .unwrap_or_else(|| panic!("nothing found\n{summary}"));
-        assert_eq!(first.effect, Some(Effect::Sideslip), "{summary}");
-        (first.params["lr_m"], report, summary)
+        let (report, summary) = effect_alone(&recordings, Effect::Sideslip, declared, "sideslip");
+        (report.findings[0].params["lr_m"], report, summary)
     };
     let (lr, report, summary) = fitted(None);
     assert_eq!(

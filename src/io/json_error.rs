@@ -11,7 +11,7 @@ pub fn json_error(source: &str, text: Option<&str>, e: &serde_json::Error) -> Er
     if let Some(cut) = message.rfind(" at line ") {
         message.truncate(cut);
     }
-    message = plain_words(&message);
+    message = super::number_words(&message);
     if message.starts_with("expected value") {
         message.push_str(" (a number, string, array or object; JSON has no NaN or Infinity)");
     }
@@ -29,23 +29,6 @@ pub fn json_error(source: &str, text: Option<&str>, e: &serde_json::Error) -> Er
         column: e.column(),
         message,
     }
-}
-
-/// serde's names for Rust number types in JSON's words.
-fn plain_words(message: &str) -> String {
-    let mut text = message.replacen("invalid type: ", "found ", 1);
-    for (rust, plain) in [
-        ("expected usize", "expected a whole number >= 0"),
-        ("expected u64", "expected a whole number >= 0"),
-        ("expected u32", "expected a whole number >= 0"),
-        ("expected i64", "expected a whole number"),
-        ("expected i32", "expected a whole number"),
-        ("expected f64", "expected a number"),
-        ("expected f32", "expected a number"),
-    ] {
-        text = text.replace(rust, plain);
-    }
-    text
 }
 
 /// The last `"key":` on the 1-based `line` of `text` before `column`. None where the

@@ -164,19 +164,31 @@ fn table_kind_hint<T: serde::de::DeserializeOwned>(
     })
 }
 
+/// serde's names for Rust number types, in words: shared by the TOML and JSON messages.
+const NUMBER_WORDS: [(&str, &str); 8] = [
+    ("expected usize", "expected a whole number >= 0"),
+    ("expected u64", "expected a whole number >= 0"),
+    ("expected u32", "expected a whole number >= 0"),
+    ("expected u8", "expected a whole number from 0 to 255"),
+    ("expected i64", "expected a whole number"),
+    ("expected i32", "expected a whole number"),
+    ("expected f64", "expected a number"),
+    ("expected f32", "expected a number"),
+];
+
+/// `message` with serde's "invalid type" and number type names in words.
+fn number_words(message: &str) -> String {
+    let text = message.replacen("invalid type: ", "found ", 1);
+    NUMBER_WORDS
+        .iter()
+        .fold(text, |text, (rust, plain)| text.replace(rust, plain))
+}
+
 /// serde's names for Rust types ("invalid type: string \"x\", expected usize") in the words
 /// of the file's format, so a message says what to write rather than how it is stored.
 fn plain_words(message: &str) -> String {
-    let mut text = message.replacen("invalid type: ", "found ", 1);
+    let mut text = number_words(message);
     for (rust, plain) in [
-        ("expected usize", "expected a whole number >= 0"),
-        ("expected u64", "expected a whole number >= 0"),
-        ("expected u32", "expected a whole number >= 0"),
-        ("expected u8", "expected a whole number from 0 to 255"),
-        ("expected i64", "expected a whole number"),
-        ("expected i32", "expected a whole number"),
-        ("expected f64", "expected a number"),
-        ("expected f32", "expected a number"),
         ("expected a sequence", "expected a list [ ... ]"),
         ("expected a map", "expected a table"),
         ("found map", "found a table"),
