@@ -27,8 +27,8 @@ pub use input::{
 pub use json_error::json_error;
 pub use nested::SWEEP_KIND;
 pub use output::{
-    atomic_write, atomic_write_with, create_file, create_folder, is_temporary_name, remove_file,
-    remove_folder, rename, write_new,
+    atomic_write, atomic_write_all, atomic_write_with, create_file, create_folder,
+    is_temporary_name, remove_file, remove_folder, rename, write_new,
 };
 pub(crate) use output::{remove_stale_temporaries, temp_name};
 pub use process_files::{read_process_file, write_process_file};

@@ -81,25 +81,65 @@ pub(super) fn folder_of(path: &Path) -> &Path {
 /// renames it onto `path`. On error the temporary file is removed and `path` is left as it
 /// was.
 pub fn atomic_write_with(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
-    let target = link_target(path);
-    let path = target.as_deref().unwrap_or(path);
-    refuse_folder(path)?;
-    let folder = folder_of(path);
-    create_folder(folder)?;
-    let extension = path.extension().and_then(|e| e.to_str());
-    let tmp = temp_name(folder, "tmp", extension);
-    // A failure names the file the user asked for, not the temporary beside it.
-    let result = write(&tmp)
-        .map_err(|e| match e {
-            Error::Io { path: at, source } if at == tmp => Error::io(path, source),
-            other => other,
-        })
-        .and_then(|()| check_written(&tmp, path))
-        .and_then(|()| std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e)));
+    let (path, tmp) = staged_file(path)?;
+    let result = written_beside(&path, &tmp, write)
+        .and_then(|()| std::fs::rename(&tmp, &path).map_err(|e| Error::io(&path, e)));
     if result.is_err() {
         let _ = std::fs::remove_file(&tmp);
     }
     result
+}
+
+/// Writes every `(path, bytes)` as one set (a picture's PNG and SVG): each is written to a
+/// temporary beside it and checked before any is renamed into place, so a full disk leaves
+/// every path as it was, never one new file beside an old one.
+pub fn atomic_write_all(files: &[(&Path, &[u8])]) -> Result<()> {
+    let mut staged = Vec::new();
+    let mut result = Ok(());
+    for (path, bytes) in files {
+        let step = staged_file(path).and_then(|(path, tmp)| {
+            staged.push((path.clone(), tmp.clone()));
+            written_beside(&path, &tmp, |tmp| write_new(tmp, bytes))
+        });
+        if let Err(e) = step {
+            result = Err(e);
+            break;
+        }
+    }
+    if result.is_ok() {
+        result = staged
+            .iter()
+            .try_for_each(|(path, tmp)| std::fs::rename(tmp, path).map_err(|e| Error::io(path, e)));
+    }
+    if result.is_err() {
+        for (_, tmp) in &staged {
+            let _ = std::fs::remove_file(tmp);
+        }
+    }
+    result
+}
+
+/// The file `path` stands for (a link's target) and a temporary name beside it, its folder
+/// created.
+fn staged_file(path: &Path) -> Result<(std::path::PathBuf, std::path::PathBuf)> {
+    let path = link_target(path).unwrap_or_else(|| path.to_path_buf());
+    refuse_folder(&path)?;
+    let folder = folder_of(&path);
+    create_folder(folder)?;
+    let extension = path.extension().and_then(|e| e.to_str());
+    let tmp = temp_name(folder, "tmp", extension);
+    Ok((path, tmp))
+}
+
+/// Runs `write` on `tmp` and checks that it wrote a file; a failure names `path`, the file
+/// the user asked for, not the temporary beside it.
+fn written_beside(path: &Path, tmp: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+    write(tmp)
+        .map_err(|e| match e {
+            Error::Io { path: at, source } if at == tmp => Error::io(path, source),
+            other => other,
+        })
+        .and_then(|()| check_written(tmp, path))
 }
 
 /// A file is to be written at `path`, where a folder is: said in words (the rename would
@@ -314,6 +354,21 @@ pub(super) fn check_output(path: &Path, kind: OutputKind, flag: &str) -> Result<
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_set_of_files_is_written_whole_or_not_at_all() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let (a, b) = (dir.path().join("a.png"), dir.path().join("a.svg"));
+        std::fs::write(&a, "old").expect("write");
+        std::fs::create_dir(&b).expect("a folder where a file goes");
+        atomic_write_all(&[(&a, b"new"), (&b, b"new")]).expect_err("b is a folder");
+        assert_eq!(std::fs::read_to_string(&a).expect("a"), "old");
+        let names: Vec<_> = std::fs::read_dir(dir.path()).expect("list").collect();
+        assert_eq!(names.len(), 2, "no temporary left");
+        std::fs::remove_dir(&b).expect("rmdir");
+        atomic_write_all(&[(&a, b"new"), (&b, b"new")]).expect("both");
+        assert_eq!(std::fs::read_to_string(&b).expect("b"), "new");
+    }
 
     #[test]
     fn an_open_stream_is_no_output() {

@@ -46,6 +46,23 @@ const MAX_LANE_OFFSET: f64 = 50.0;
 /// a reference line bends, it does not break.
 const MAX_KINK_RAD: f64 = 0.05;
 
+/// The road `type` values of OpenDRIVE 1.4 to 1.8.
+const ROAD_TYPES: [&str; 13] = [
+    "unknown",
+    "rural",
+    "motorway",
+    "town",
+    "lowSpeed",
+    "pedestrian",
+    "bicycle",
+    "townExpressway",
+    "townCollector",
+    "townArterial",
+    "townPrivate",
+    "townLocal",
+    "townPlayStreet",
+];
+
 fn chain_slack(road_length: f64) -> f64 {
     0.5f64.max(1e-3 * road_length)
 }
@@ -122,6 +139,9 @@ fn parse(text: &str, source_name: &str, check_topology: bool) -> Result<OpenDriv
                 root.tag_name().name()
             ),
         ));
+    }
+    if let Some(header) = element(root, "header") {
+        cx.enumerated(header, "revMajor", &["1"])?;
     }
     let mut out = OpenDrive::default();
     for child in root.children().filter(Node::is_element) {
@@ -529,6 +549,7 @@ impl Ctx<'_, '_> {
                 Some(sp) => self.speed(sp)?,
                 None => None,
             };
+            self.enumerated(t, "type", &ROAD_TYPES)?;
             road.types.push(RoadType {
                 s: self.req_f64(t, "s")?,
                 kind: self.req_str(t, "type")?.to_string(),
@@ -927,6 +948,7 @@ impl Ctx<'_, '_> {
     }
 
     fn lane_section(&self, node: Node) -> Result<LaneSection> {
+        self.enumerated(node, "singleSide", &["true", "false", "0", "1"])?;
         let mut sec = LaneSection {
             s: self.req_f64(node, "s")?,
             left: Vec::new(),

@@ -481,6 +481,25 @@ fn misspelt_enumerations_and_missing_structure_are_refused_with_their_line() {
         assert!(message.contains(expected), "{expected}: {message}");
         assert_eq!(line, line_of(&text, at), "{expected}: {message}");
     }
+    let typed = road.replacen("<link>", "<type s=\"0\" type=\"motorwy\"/><link>", 1);
+    let sided = road.replacen(
+        "<laneSection s=\"0\">",
+        "<laneSection s=\"0\" singleSide=\"maybe\">",
+        1,
+    );
+    for (text, expected, at) in [
+        (document(&typed), "`type` is `motorwy`", "motorwy"),
+        (document(&sided), "`singleSide` is `maybe`", "singleSide"),
+        (
+            document(&road).replace("<header/>", "<header revMajor=\"2\"/>"),
+            "`revMajor` is `2`",
+            "<header",
+        ),
+    ] {
+        let (line, message) = parse_err(&text);
+        assert!(message.contains(expected), "{expected}: {message}");
+        assert_eq!(line, line_of(&text, at), "{expected}: {message}");
+    }
 }
 
 #[test]

@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use plotters::prelude::*;
 
 use crate::error::{Error, Result};
-use crate::io::atomic_write;
+use crate::io::atomic_write_all;
 use crate::map::{Map, RoadMark};
 use crate::scene::{AgentRole, Scene, SceneAgent};
 
@@ -145,12 +145,18 @@ fn rotate(p: [f64; 2], cos: f64, sin: f64) -> [f64; 2] {
 /// Draws `scene` at its current step to `path`: `.png` or `.svg` by extension. The file is
 /// written atomically.
 pub fn render_scene(scene: &Scene, path: &Path, opts: &RenderOptions) -> Result<()> {
-    render(&scene.map, Some(scene), path, opts)
+    render(&scene.map, Some(scene), &[path.to_path_buf()], opts)
+}
+
+/// [`render_scene`] into every path of `paths` (a PNG and an SVG), written as one set: a
+/// failure leaves every path as it was.
+pub fn render_scene_files(scene: &Scene, paths: &[PathBuf], opts: &RenderOptions) -> Result<()> {
+    render(&scene.map, Some(scene), paths, opts)
 }
 
 /// Draws an empty map (road surface and lane marks), e.g. a procedural one.
-pub fn render_map(map: &Map, path: &Path, opts: &RenderOptions) -> Result<()> {
-    render(map, None, path, opts)
+pub fn render_map(map: &Map, paths: &[PathBuf], opts: &RenderOptions) -> Result<()> {
+    render(map, None, paths, opts)
 }
 
 /// What `render_scene` and `render_map` refuse before drawing, checked without a map (so a
@@ -177,21 +183,40 @@ fn check_width(opts: &RenderOptions) -> Result<()> {
     Ok(())
 }
 
-fn render(map: &Map, scene: Option<&Scene>, path: &Path, opts: &RenderOptions) -> Result<()> {
-    check_target(path, opts)?;
+/// Draws into every path of `paths` (written as one set).
+fn render(map: &Map, scene: Option<&Scene>, paths: &[PathBuf], opts: &RenderOptions) -> Result<()> {
     let view = View::fit(map, opts)?;
+    let drawn = paths
+        .iter()
+        .map(|path| {
+            check_target(path, opts)?;
+            Ok((path.as_path(), drawing(map, scene, path, &view, opts)?))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let files: Vec<(&Path, &[u8])> = drawn.iter().map(|(p, b)| (*p, b.as_slice())).collect();
+    atomic_write_all(&files)
+}
+
+/// The picture for `path` (PNG or SVG, by its extension) as the file's bytes.
+fn drawing(
+    map: &Map,
+    scene: Option<&Scene>,
+    path: &Path,
+    view: &View,
+    opts: &RenderOptions,
+) -> Result<Vec<u8>> {
     let size = (opts.width_px, view.height_px);
     let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
     // Drawn in memory and written through the one writer, so a failed write (a full disk)
     // is said as the file system says it, of the output.
-    let bytes = match ext {
+    Ok(match ext {
         "svg" => {
             let mut svg = String::new();
             draw(
                 SVGBackend::with_string(&mut svg, size).into_drawing_area(),
                 map,
                 scene,
-                &view,
+                view,
                 opts,
             )
             .map_err(|e| drawing_error(path, e))?;
@@ -204,14 +229,13 @@ fn render(map: &Map, scene: Option<&Scene>, path: &Path, opts: &RenderOptions) -
                 BitMapBackend::with_buffer(&mut rgb, size).into_drawing_area(),
                 map,
                 scene,
-                &view,
+                view,
                 opts,
             )
             .map_err(|e| drawing_error(path, e))?;
             png_bytes(&rgb, size).map_err(|e| drawing_error(path, e))?
         }
-    };
-    atomic_write(path, &bytes)
+    })
 }
 
 /// An RGB image of `width` x `height` as PNG.

@@ -60,10 +60,8 @@ pub fn run(command: MapCommand) -> Result<()> {
             };
             let (targets, _claims) = image_targets(&out, &opts, &source.inputs())?;
             let map = source.load()?;
-            // Every file first: a full stdout must not cut the set short.
-            for path in &targets {
-                render_map(&map, path, &opts)?;
-            }
+            // Every file first, as one set: a full stdout must not cut the set short.
+            render_map(&map, &targets, &opts)?;
             for path in &targets {
                 rtr::outln!("wrote {}", path.display())?;
             }

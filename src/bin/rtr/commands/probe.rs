@@ -149,7 +149,17 @@ fn check_warm_start(warm_start: &std::path::Path) -> Result<PathBuf> {
     let run_file = warm_start_config(warm_start)?;
     rtr::io::check_input_file(&run_file, "--warm-start")?;
     // The policy itself, before any scenario is drawn.
-    if warm_start.is_dir() && !warm_start.join("policy.bpk").is_file() {
+    let policy = warm_start.join("policy.bpk");
+    if warm_start.is_dir()
+        && let Some(why) = rtr::io::not_regular(&policy)
+    {
+        return Err(Error::InvalidArgument(format!(
+            "--warm-start {}: {}",
+            policy.display(),
+            why
+        )));
+    }
+    if warm_start.is_dir() && !policy.is_file() {
         return Err(Error::InvalidArgument(format!(
             "--warm-start {}: no policy.bpk there: an unfinished run keeps its policy in \
              checkpoints/iter-*/ (name that folder), and a model folder holds one",

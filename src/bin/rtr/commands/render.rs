@@ -9,7 +9,7 @@ use rtr::backend::Backend;
 use rtr::data::{SceneConfig, commonroad};
 use rtr::eval::EvalSet;
 use rtr::io::Inputs;
-use rtr::render::{MAX_FPS, RenderOptions, render_scene};
+use rtr::render::{MAX_FPS, RenderOptions, render_scene_files};
 use rtr::scenario::ConcreteScenario;
 use rtr::scene::Scene;
 use rtr::{Error, Result};
@@ -98,10 +98,8 @@ pub fn run(args: RenderArgs) -> Result<()> {
         Source::Scenario(scenario) => return render_scenario(&scenario, &opts, &targets),
         Source::Recorded { scene, .. } => scene,
     };
-    // Every file first: a full stdout must not cut the set short.
-    for path in &targets {
-        render_scene(&scene, path, &opts)?;
-    }
+    // Every file first, as one set: a full stdout must not cut the set short.
+    render_scene_files(&scene, &targets, &opts)?;
     for path in &targets {
         rtr::outln!("wrote {}", path.display())?;
     }
@@ -199,9 +197,7 @@ fn render_scenario(
         focus: Some((target, 200.0)),
         ..opts.clone()
     };
-    for target in targets {
-        render_scene(&scene, target, &opts)?;
-    }
+    render_scene_files(&scene, targets, &opts)?;
     for target in targets {
         rtr::outln!("wrote {}", target.display())?;
     }
