@@ -686,6 +686,27 @@ impl Ctx<'_, '_> {
         for sec in &road.lane_sections {
             let end = section_end(road, sec);
             for lane in sec.left.iter().chain(&sec.right) {
+                // A record that starts past its section's end describes nothing of the road:
+                // written for another section, or with `s` where `sOffset` belongs.
+                if let Some(late) = lane
+                    .widths
+                    .iter()
+                    .find(|w| w.s > end - sec.s + chain_slack(road.length))
+                {
+                    return Err(self.err(
+                        lanes,
+                        format!(
+                            "road {}: lane {} of the laneSection at s={} has a <width> at \
+                             sOffset={}, past the section's end ({} m long); expected offsets \
+                             within the section",
+                            road.id,
+                            lane.id,
+                            sec.s,
+                            late.s,
+                            end - sec.s
+                        ),
+                    ));
+                }
                 let bad = width_samples(lane, sec.s, end)
                     .find(|&(_, w)| !(-WIDTH_SLACK..=MAX_LANE_WIDTH).contains(&w));
                 if let Some((s, w)) = bad {
@@ -886,9 +907,11 @@ impl Ctx<'_, '_> {
             return Err(self.err(
                 node,
                 format!(
-                    "<{}> attribute `{name}` is {v} m; expected |{name}| <= {MAX_COORDINATE} m \
+                    "<{}> attribute `{name}` is {} m; expected |{name}| <= {MAX_COORDINATE} m \
                      (metres from the map origin)",
-                    node.tag_name().name()
+                    node.tag_name().name(),
+                    // As written: `1e300` printed as a number has 301 digits.
+                    node.attribute(name).unwrap_or_default().trim()
                 ),
             ));
         }

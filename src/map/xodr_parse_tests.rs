@@ -495,6 +495,16 @@ fn misspelt_enumerations_and_missing_structure_are_refused_with_their_line() {
             "`revMajor` is `2`",
             "<header",
         ),
+        (
+            document(&road.replacen(
+                "<width sOffset=\"0\" a=\"3.5\" b=\"0\" c=\"0\" d=\"0\"/>",
+                "<width sOffset=\"0\" a=\"3.5\" b=\"0\" c=\"0\" d=\"0\"/>\
+                 <width sOffset=\"60\" a=\"3.5\" b=\"0\" c=\"0\" d=\"0\"/>",
+                1,
+            )),
+            "<width> at sOffset=60, past the section's end",
+            "<lanes>",
+        ),
     ] {
         let (line, message) = parse_err(&text);
         assert!(message.contains(expected), "{expected}: {message}");
