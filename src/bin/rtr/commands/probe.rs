@@ -93,7 +93,8 @@ pub fn run(command: ProbeCommand) -> Result<()> {
         out: args.out.clone(),
     };
     let dataset = args.data.load()?;
-    let reports = run_probes(&tasks, &settings, &dataset, &|line| rtr::errln!("{line}"))?;
+    let reports = run_probes(&tasks, &settings, &dataset, &|line| rtr::errln!("{line}"))
+        .map_err(|e| warm_start_named(e, &args))?;
     if args.json {
         let json = serde_json::json!({ "tasks": reports });
         rtr::outln!("{json}")?;
@@ -101,6 +102,24 @@ pub fn run(command: ProbeCommand) -> Result<()> {
         rtr::outln!("{}", table(&reports))?;
     }
     Ok(())
+}
+
+/// An error of the warm start said of `--warm-start` where the user wrote no run file: the
+/// probes' own run file, which names it as `init.policy`, is not one the user knows.
+fn warm_start_named(error: Error, args: &PpoProbeArgs) -> Error {
+    match error {
+        Error::InvalidData {
+            source_name,
+            place,
+            message,
+        } if args.config.is_none()
+            && source_name == "run file"
+            && place == "field `init.policy`" =>
+        {
+            Error::InvalidArgument(format!("--warm-start: {message}"))
+        }
+        other => other,
+    }
 }
 
 /// The run file the probes train with.
