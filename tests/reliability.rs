@@ -753,6 +753,22 @@ fn a_folder_of_the_users_is_never_written_over() {
         std::fs::read_to_string(notes.join("curves.csv")).expect("kept"),
         "mine"
     );
+    // What a run stopped before its first checkpoint leaves (its config) is not the user's:
+    // the run goes on to its next check (here its warm start, which is not there).
+    let left = dir.path().join("left");
+    std::fs::create_dir_all(&left).expect("mkdir");
+    let run_file = std::fs::read_to_string("experiments/main/il.toml").expect("run file");
+    std::fs::write(left.join("config.toml"), run_file).expect("write");
+    assert_refused(
+        &[
+            "train",
+            "--config",
+            "experiments/main/il.toml",
+            "--out",
+            left.to_str().expect("UTF-8 path"),
+        ],
+        &["field `init.policy`"],
+    );
 }
 
 /// `rtr model average` of two shipped models into `out`.

@@ -291,20 +291,29 @@ pub fn resume_point(run_dir: &Path, resume: bool) -> Result<Option<PathBuf>> {
     }
 }
 
-/// Refuses a new run's folder that holds anything but an empty `checkpoints/`: without a
-/// checkpoint there is no run there, so a `config.toml` or `curves.csv` is the user's (a run
-/// that fails before its first checkpoint removes its own) and would be replaced.
+/// Refuses a new run's folder that holds anything but what a run stopped before its first
+/// checkpoint leaves (a `config.toml` that is a run's config, a `curves.csv` with the curve
+/// columns, an empty `checkpoints/`): a file of the user's there would be replaced.
 fn refuse_files_without_a_run(run_dir: &Path) -> Result<()> {
     if !run_dir.is_dir() {
         return Ok(());
     }
+    let runs_own = |path: &Path, name: &str| match name {
+        "config.toml" => {
+            crate::io::read_text(path, crate::io::Format::Settings).is_ok_and(|text| {
+                text.contains("method")
+                    && super::TrainConfig::from_toml_str(&text, "config.toml").is_ok()
+            })
+        }
+        "curves.csv" => super::curves::read(path).is_ok(),
+        "checkpoints" => crate::io::list_folder(path).is_ok_and(|entries| entries.is_empty()),
+        _ => false,
+    };
     let foreign: Vec<String> = crate::io::list_folder(run_dir)?
         .iter()
         .filter_map(|p| {
             let name = p.file_name()?.to_string_lossy().into_owned();
-            let empty_checkpoints = name == "checkpoints"
-                && crate::io::list_folder(p).is_ok_and(|entries| entries.is_empty());
-            (!empty_checkpoints).then(|| if p.is_dir() { format!("{name}/") } else { name })
+            (!runs_own(p, &name)).then(|| if p.is_dir() { format!("{name}/") } else { name })
         })
         .collect();
     if foreign.is_empty() {
@@ -312,8 +321,7 @@ fn refuse_files_without_a_run(run_dir: &Path) -> Result<()> {
     }
     Err(Error::InvalidArgument(format!(
         "{}: holds files but no run ({}); a run writes config.toml, curves.csv and \
-         checkpoints/ there, and would replace them. Choose an empty or new folder (or, if a \
-         run killed before its first checkpoint left them, remove them)",
+         checkpoints/ there, and would replace them. Choose an empty or new folder",
         run_dir.display(),
         foreign.join(", ")
     )))
