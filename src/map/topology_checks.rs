@@ -52,6 +52,8 @@ pub(super) fn check(od: &OpenDrive) -> Option<Problem> {
         .or_else(|| links_meet(od))
         .or_else(|| links_keep_direction(od))
         .or_else(|| connections_meet(od))
+        .or_else(|| junction_members_agree(od))
+        .or_else(|| links_are_mutual(od))
         .or_else(|| linked_lanes_exist(od))
         .or_else(|| linked_lane_edges_meet(od))
         .or_else(|| super::shape_checks::check(od))
@@ -244,6 +246,52 @@ fn road_links(od: &OpenDrive) -> impl Iterator<Item = LinkedEnds<'_>> {
     })
 }
 
+/// Two roads joined outside a junction name each other: a road's `successor` with contact
+/// point `start` is answered by the other road's `predecessor` naming it with contact point
+/// `end` (the standard's road linkage). A link one road states and the other denies or leaves
+/// out is a file that disagrees with itself: which of the two was meant cannot be told.
+/// Connecting roads inside a junction are linked one way by design (the incoming road links
+/// to the junction), so only roads outside junctions are held to this.
+fn links_are_mutual(od: &OpenDrive) -> Option<Problem> {
+    road_links(od)
+        .filter(|l| l.road.junction.is_none() && l.other.junction.is_none())
+        .find_map(|l| {
+            let (back, tag) = match l.contact {
+                ContactPoint::Start => (&l.other.predecessor, "predecessor"),
+                ContactPoint::End => (&l.other.successor, "successor"),
+            };
+            let answered = back.as_ref().is_some_and(|b| {
+                b.element_type == ElementType::Road
+                    && b.element_id == l.road.id
+                    && b.contact_point.unwrap_or(ContactPoint::Start) == l.own_end
+            });
+            if answered {
+                return None;
+            }
+            let found = match back {
+                None => "has no link there".to_string(),
+                Some(b) => format!(
+                    "links it to {} {:?}{}",
+                    match b.element_type {
+                        ElementType::Road => "road",
+                        ElementType::Junction => "junction",
+                    },
+                    b.element_id,
+                    b.contact_point
+                        .map(|c| format!(" at its {}", end_name(c)))
+                        .unwrap_or_default()
+                ),
+            };
+            Some(l.problem(format!(
+                "road {}'s {tag} {found}; expected it to name road {} with contactPoint=\"{}\" \
+                 (roads joined outside a junction link each other)",
+                l.other.id,
+                l.road.id,
+                end_name(l.own_end)
+            )))
+        })
+}
+
 /// A road linked to a road touches it at the linked end (a road that is its own successor
 /// must close on itself).
 fn links_meet(od: &OpenDrive) -> Option<Problem> {
@@ -343,6 +391,66 @@ fn connections(od: &OpenDrive) -> impl Iterator<Item = (&Junction, &Connection, 
             Some((junction, c, incoming, connecting))
         })
     })
+}
+
+/// A junction and its roads agree on membership: each connection's id is given once in its
+/// junction, its connecting road carries the junction's id (`junction="..."`: a road outside
+/// the junction would be held to road-to-road links), and its incoming road links to the
+/// junction at one of its ends (otherwise the road ends in nothing at the junction's side).
+fn junction_members_agree(od: &OpenDrive) -> Option<Problem> {
+    for junction in &od.junctions {
+        let ids: Vec<&String> = junction.connections.iter().map(|c| &c.id).collect();
+        if let Some(k) = (0..ids.len()).find(|&k| ids[..k].contains(&ids[k])) {
+            let c = &junction.connections[k];
+            return Some(Problem {
+                place: Place::Connection {
+                    junction: junction.id.clone(),
+                    id: c.id.clone(),
+                },
+                message: format!(
+                    "junction {} gives connection id \"{}\" to more than one connection; \
+                     expected each connection's id once",
+                    junction.id, c.id
+                ),
+            });
+        }
+    }
+    for (junction, c, incoming, connecting) in connections(od) {
+        let place = Place::Connection {
+            junction: junction.id.clone(),
+            id: c.id.clone(),
+        };
+        if connecting.junction.as_deref() != Some(junction.id.as_str()) {
+            return Some(Problem {
+                place,
+                message: format!(
+                    "junction {} names road {} as a connecting road, but the road says \
+                     junction=\"{}\"; expected junction=\"{}\" on a road inside the junction",
+                    junction.id,
+                    connecting.id,
+                    connecting.junction.as_deref().unwrap_or("-1"),
+                    junction.id
+                ),
+            });
+        }
+        let links_here = [&incoming.predecessor, &incoming.successor]
+            .into_iter()
+            .flatten()
+            .any(|l| l.element_type == ElementType::Junction && l.element_id == junction.id);
+        // An incoming road that is itself inside the junction joins its neighbours directly.
+        if !links_here && incoming.junction.is_none() {
+            return Some(Problem {
+                place,
+                message: format!(
+                    "junction {} names road {} as an incoming road, but the road links to the \
+                     junction at neither end; expected its <predecessor> or <successor> to be \
+                     elementType=\"junction\" elementId=\"{}\"",
+                    junction.id, incoming.id, junction.id
+                ),
+            });
+        }
+    }
+    None
 }
 
 /// A junction connection's connecting road is another road, and touches one end of its

@@ -275,12 +275,64 @@ fn linked_road_ends_must_meet() {
     assert!(message.contains("100.00 m apart"), "{message}");
 }
 
+/// Two roads joined outside a junction name each other; a link one road states and the other
+/// leaves out or contradicts is refused at the link.
+#[test]
+fn a_road_link_the_other_road_does_not_return_is_refused() {
+    let next = r#"<successor elementType="road" elementId="b" contactPoint="start"/>"#;
+    let back = r#"<predecessor elementType="road" elementId="a" contactPoint="end"/>"#;
+    let one_sided =
+        document(&(straight("a", 0.0, 100.0, next, "") + &straight("b", 100.0, 50.0, "", "")));
+    let (line, message) = parse_err(&one_sided);
+    assert!(
+        message.contains("road b's predecessor has no link there")
+            && message.contains("name road a with contactPoint=\"end\""),
+        "{message}"
+    );
+    assert_eq!(line, line_of(&one_sided, "<successor"));
+    // Only the other road states the link: refused at its element.
+    let other_only =
+        document(&(straight("a", 0.0, 100.0, "", "") + &straight("b", 100.0, 50.0, back, "")));
+    let (line, message) = parse_err(&other_only);
+    assert!(
+        message.contains("road a's successor has no link there"),
+        "{message}"
+    );
+    assert_eq!(line, line_of(&other_only, "<predecessor"));
+    // A second road c merging into b's start without a junction: b names a, not c.
+    let turn: f64 = 0.3;
+    let merging = straight("c", 0.0, 50.0, next, "").replace(
+        r#"x="0" y="0" hdg="0""#,
+        &format!(
+            r#"x="{}" y="{}" hdg="{turn}""#,
+            100.0 - 50.0 * turn.cos(),
+            -50.0 * turn.sin()
+        ),
+    );
+    let text = document(
+        &(straight("a", 0.0, 100.0, next, "") + &straight("b", 100.0, 50.0, back, "") + &merging),
+    );
+    let (line, message) = parse_err(&text);
+    assert!(
+        message.starts_with("road c links its end to the start of road b")
+            && message.contains("links it to road \"a\" at its end"),
+        "{message}"
+    );
+    assert_eq!(line, line_of(&text, r#"<road id="c""#), "{message}");
+    parse_xodr(
+        &document(&(straight("a", 0.0, 100.0, next, "") + &straight("b", 100.0, 50.0, back, ""))),
+        "t",
+    )
+    .expect("roads that link each other");
+}
+
 #[test]
 fn every_linked_lane_must_exist() {
     let next = r#"<successor elementType="road" elementId="b" contactPoint="start"/>"#;
+    let back = r#"<predecessor elementType="road" elementId="a" contactPoint="end"/>"#;
     let to_missing = r#"<successor id="-3"/>"#;
     let text = document(
-        &(straight("a", 0.0, 100.0, next, to_missing) + &straight("b", 100.0, 50.0, "", "")),
+        &(straight("a", 0.0, 100.0, next, to_missing) + &straight("b", 100.0, 50.0, back, "")),
     );
     let (line, message) = parse_err(&text);
     assert!(message.contains("successor lane -3"), "{message}");
@@ -295,7 +347,9 @@ fn every_linked_lane_must_exist() {
  <laneLink from="-1" to="-5"/></connection></junction>
 "#;
     let text = document(
-        &(straight("a", 0.0, 100.0, into, "") + &straight("c", 100.0, 20.0, "", "") + junction),
+        &(straight("a", 0.0, 100.0, into, "")
+            + &straight("c", 100.0, 20.0, "", "").replace(r#"junction="-1""#, r#"junction="j""#)
+            + junction),
     );
     let (line, message) = parse_err(&text);
     assert!(
@@ -306,14 +360,14 @@ fn every_linked_lane_must_exist() {
     // The centre lane is a reference line: a link into it leads nowhere.
     let to_centre = r#"<successor id="0"/>"#;
     let text = document(
-        &(straight("a", 0.0, 100.0, next, to_centre) + &straight("b", 100.0, 50.0, "", "")),
+        &(straight("a", 0.0, 100.0, next, to_centre) + &straight("b", 100.0, 50.0, back, "")),
     );
     let (line, message) = parse_err(&text);
     assert!(message.contains("lane 0, the centre lane"), "{message}");
     assert_eq!(line, line_of(&text, "<successor id=\"0\""));
     let text = document(
         &(straight("a", 0.0, 100.0, into, "")
-            + &straight("c", 100.0, 20.0, "", "")
+            + &straight("c", 100.0, 20.0, "", "").replace(r#"junction="-1""#, r#"junction="j""#)
             + &junction.replace(r#"to="-5""#, r#"to="0""#)),
     );
     assert!(parse_err(&text).1.contains("the centre lane"));
@@ -663,9 +717,10 @@ fn a_link_that_reverses_the_direction_of_travel_is_refused() {
     let next = |contact: &str| {
         format!(r#"<successor elementType="road" elementId="b" contactPoint="{contact}"/>"#)
     };
+    let back = r#"<successor elementType="road" elementId="a" contactPoint="end"/>"#;
     let head_on = document(
         &(straight("a", 0.0, 100.0, &next("end"), "")
-            + &reversed(straight("b", 150.0, 50.0, "", ""))),
+            + &reversed(straight("b", 150.0, 50.0, back, ""))),
     );
     parse_xodr(&head_on, "t").expect("two roads joined end to end");
     let text = document(
@@ -843,4 +898,40 @@ fn lane_edges_that_jump_along_a_road_are_refused() {
         assert!(message.contains(what), "{message}");
         assert_eq!(line, line_of(&text, needle), "{message}");
     }
+}
+
+/// A junction and its roads agree on who belongs to it: connection ids once, connecting roads
+/// marked as the junction's, incoming roads linked to it.
+#[test]
+fn a_junction_and_its_roads_must_agree_on_membership() {
+    let merge = include_str!("../../fuzz/seeds/opendrive/on_ramp_merge.xodr");
+    parse_xodr(merge, "t").expect("the shipped merge");
+    let twice = merge.replacen(r#"<connection id="1""#, r#"<connection id="0""#, 1);
+    let (line, message) = parse_err(&twice);
+    assert!(
+        message.contains("gives connection id \"0\" to more than one connection"),
+        "{message}"
+    );
+    assert_eq!(line, line_of(&twice, r#"<connection id="0""#));
+    let outside = merge.replace(
+        r#"<road id="11" name="rtr road 11" length="5" junction="100""#,
+        r#"<road id="11" name="rtr road 11" length="5" junction="-1""#,
+    );
+    let (_, message) = parse_err(&outside);
+    assert!(
+        message.contains("names road 11 as a connecting road, but the road says junction=\"-1\""),
+        "{message}"
+    );
+    let unlinked = merge.replacen(
+        r#"<successor elementType="junction" elementId="100"/>"#,
+        "",
+        1,
+    );
+    let (_, message) = parse_err(&unlinked);
+    assert!(
+        message.contains(
+            "names road 1 as an incoming road, but the road links to the junction at neither end"
+        ),
+        "{message}"
+    );
 }
