@@ -120,10 +120,10 @@ pub fn load_recording(path: &Path, expected_sha256: Option<&str>) -> Result<Reco
         ),
         error: None,
     };
-    let parsed = serde_json::from_reader::<_, RawFile>(std::io::BufReader::with_capacity(
-        1 << 20,
-        &mut decoder,
-    ));
+    let parsed = crate::io::parse_json_reader::<RawFile>(
+        std::io::BufReader::with_capacity(1 << 20, &mut decoder),
+        &source,
+    );
     // A gzip failure surfaces inside serde as an I/O error; report the gzip one, which says
     // what is actually wrong with the file.
     if let Some(gzip_error) = decoder.error.take() {
@@ -136,7 +136,7 @@ pub fn load_recording(path: &Path, expected_sha256: Option<&str>) -> Result<Reco
             format!("{gzip_error} (truncated or not a gzip file?)"),
         ));
     }
-    let raw = parsed.map_err(|e| crate::io::json_error(&source, None, &e))?;
+    let raw = parsed?;
     // The gzip trailer (CRC, length) follows the JSON: read it so a damaged tail is caught.
     let mut rest = Vec::new();
     if let Err(e) = decoder.inner.read_to_end(&mut rest) {

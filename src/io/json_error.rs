@@ -1,8 +1,70 @@
 //! serde_json's errors as rtr reports them: the position in its own fields (serde_json also
-//! appends it to the message, which would show it twice), and the key being read where the
-//! line holds one.
+//! appends it to the message, which would show it twice), and the path of the value at fault
+//! (`agents[2].position`), or the key being read where the line holds one.
 
-use crate::error::Error;
+use crate::error::{Error, Result};
+
+/// Reads the JSON document `text` (named `source` in errors) as a `T`. An error names the
+/// path of the value at fault from the document's root (`agents[2].position: invalid length
+/// 3, expected 2 elements`): serde_json's own position is where it noticed, which for an
+/// array of the wrong length is its closing bracket, far from any key.
+pub fn parse_json<T: serde::de::DeserializeOwned>(text: &str, source: &str) -> Result<T> {
+    deserialize(serde_json::Deserializer::from_str(text), source, Some(text))
+}
+
+/// [`parse_json`] of a stream (a decompressed file too large to hold as text twice).
+pub fn parse_json_reader<T: serde::de::DeserializeOwned>(
+    reader: impl std::io::Read,
+    source: &str,
+) -> Result<T> {
+    deserialize(serde_json::Deserializer::from_reader(reader), source, None)
+}
+
+fn deserialize<'de, R: serde_json::de::Read<'de>, T: serde::de::DeserializeOwned>(
+    mut reader: serde_json::Deserializer<R>,
+    source: &str,
+    text: Option<&str>,
+) -> Result<T> {
+    let value = serde_path_to_error::deserialize(&mut reader).map_err(|e| {
+        let path = e.path().to_string();
+        let error = json_error(source, text, e.inner());
+        if path == "." {
+            return error;
+        }
+        with_path(error, &path)
+    })?;
+    reader.end().map_err(|e| json_error(source, text, &e))?;
+    Ok(value)
+}
+
+/// `error`'s message led by `path` in place of the key [`json_error`] found on the line.
+fn with_path(error: Error, path: &str) -> Error {
+    let Error::Parse {
+        source_name,
+        line,
+        column,
+        message,
+    } = error
+    else {
+        return error;
+    };
+    let message = match message.strip_prefix('`').and_then(|m| m.split_once("`: ")) {
+        Some((_, rest)) => rest.to_string(),
+        None => message,
+    };
+    // serde_json says this of a fixed-length array given more elements than it holds.
+    let message = if message == "trailing characters" {
+        "more elements than this array holds".to_string()
+    } else {
+        message
+    };
+    Error::Parse {
+        source_name,
+        line,
+        column,
+        message: format!("`{path}`: {message}"),
+    }
+}
 
 /// The error `e` of reading the JSON `source`; `text`, when at hand, lets the message name
 /// the key of the value at fault (`"dt": "half"` -> `dt: invalid type ...`).
@@ -79,6 +141,45 @@ mod tests {
                 "{shown}"
             );
         }
+        // An array of the wrong length is noticed at its closing bracket, far from its key:
+        // the path names it.
+        #[derive(Debug, serde::Deserialize)]
+        #[allow(dead_code)]
+        struct Agent {
+            position: [f64; 2],
+        }
+        #[derive(Debug, serde::Deserialize)]
+        #[allow(dead_code)]
+        struct Scene {
+            agents: Vec<Agent>,
+        }
+        let text =
+            "{\"agents\": [\n {\"position\": [1, 2]},\n {\"position\": [\n  1, 2, 3\n ]}\n]}";
+        let shown = parse_json::<Scene>(text, "s.json")
+            .expect_err("three numbers")
+            .to_string();
+        assert!(
+            shown.contains("`agents[1].position`: more elements than this array holds"),
+            "{shown}"
+        );
+        let shown = parse_json::<Scene>(&text.replace("1, 2, 3", "1"), "s.json")
+            .expect_err("one number")
+            .to_string();
+        assert!(
+            shown.contains("`agents[1].position`: invalid length 1"),
+            "{shown}"
+        );
+        let shown = parse_json::<Scene>("{\"agents\": [{}]}", "s.json")
+            .expect_err("no position")
+            .to_string();
+        assert!(
+            shown.contains("`agents[0]`: missing field `position`"),
+            "{shown}"
+        );
+        let shown = parse_json::<Scene>("{\"agents\": []} x", "s.json")
+            .expect_err("trailing characters")
+            .to_string();
+        assert!(shown.contains("trailing characters"), "{shown}");
         let e = serde_json::from_str::<Vec<f64>>("[1, NaN]").expect_err("no NaN");
         let shown = json_error("v.json", None, &e).to_string();
         assert!(shown.contains("JSON has no NaN"), "{shown}");

@@ -17,14 +17,14 @@ mod staged;
 mod toml_field;
 
 pub use claim::{
-    Inputs, OutputClaim, claim_output_file, claim_output_folder, is_bookkeeping,
-    release_locks_on_signal, resolved,
+    FileKind, Inputs, OutputClaim, RECOGNISED_BYTES, claim_output_file, claim_output_folder,
+    is_bookkeeping, release_locks_on_signal, resolved,
 };
 pub use input::{
     Capped, Format, capped, check_input_file, check_input_folder, check_input_path, files_in_tree,
     list_folder, not_regular, open_regular, read_bytes, read_error, read_text, utf8_text,
 };
-pub use json_error::json_error;
+pub use json_error::{json_error, parse_json, parse_json_reader};
 pub use nested::SWEEP_KIND;
 pub use output::{
     atomic_write, atomic_write_all, atomic_write_with, create_file, create_folder,

@@ -298,8 +298,7 @@ impl ConcreteScenario {
 
     /// Parses and checks a scenario; errors name `source_name` and the line or field.
     pub fn from_json_str(text: &str, source_name: &str) -> Result<Self> {
-        let scenario: Self = serde_json::from_str(text)
-            .map_err(|e| crate::io::json_error(source_name, Some(text), &e))?;
+        let scenario: Self = crate::io::parse_json(text, source_name)?;
         scenario.check_digest(source_name)?;
         scenario.check(source_name)?;
         Ok(scenario)
