@@ -246,7 +246,7 @@ fn an_output_that_is_not_a_file_is_refused_and_a_link_is_written_through() {
         assert_refused(&args, &["--out", "link to nothing"]);
     }
     let target = dir.path().join("real.xodr");
-    std::fs::write(&target, "old").expect("write");
+    std::fs::write(&target, "<OpenDRIVE><header/></OpenDRIVE>").expect("write");
     let link = dir.path().join("link.xodr");
     std::os::unix::fs::symlink(&target, &link).expect("symlink");
     let status = rtr()
@@ -264,7 +264,7 @@ fn an_output_that_is_not_a_file_is_refused_and_a_link_is_written_through() {
         "the link is still a link"
     );
     let written = std::fs::read_to_string(&target).expect("target");
-    assert!(written.contains("<OpenDRIVE"), "the target was written");
+    assert!(written.contains("<road"), "the target was written");
 }
 
 /// A study folder is checked before the work: a file of the user's where results go, or the
@@ -769,6 +769,73 @@ fn a_folder_of_the_users_is_never_written_over() {
         ],
         &["field `init.policy`"],
     );
+}
+
+/// An output file that exists is replaced only by a file of its kind, by content as well as
+/// by name: a user's notes, table or sketch that happens to carry the extension stays.
+#[test]
+fn a_file_of_the_users_is_never_written_over() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mine = |name: &str| {
+        let path = dir.path().join(name);
+        std::fs::write(&path, "my own words\n").expect("write");
+        path.to_str().expect("UTF-8 path").to_string()
+    };
+    let cases: [(Vec<&str>, String, &str); 5] = [
+        (
+            vec!["curate", "--checkpoint", "models/il_main", "--out"],
+            mine("notes.txt"),
+            "is not a scene list",
+        ),
+        (
+            vec![
+                "recordings",
+                "generate",
+                "--effect",
+                "none",
+                "--tracks",
+                "3",
+                "--out",
+            ],
+            mine("table.csv"),
+            "is not a recordings CSV",
+        ),
+        (
+            vec!["map", "export", "--procedural", "curve", "--out"],
+            mine("sketch.xodr"),
+            "is not an OpenDRIVE map",
+        ),
+        (
+            vec!["map", "render", "--procedural", "curve", "--out"],
+            mine("logo.svg"),
+            "is not a PNG or SVG picture",
+        ),
+        (
+            vec!["render", "--animate", "--out"],
+            mine("clip.gif"),
+            "is not a GIF animation",
+        ),
+    ];
+    for (args, out, expected) in &cases {
+        let mut args = args.clone();
+        args.push(out);
+        assert_refused(&args, &[expected, out]);
+        assert_eq!(
+            std::fs::read_to_string(out).expect("kept"),
+            "my own words\n"
+        );
+    }
+    // A file the command wrote itself is replaced.
+    let own = dir.path().join("own.xodr");
+    let own_str = own.to_str().expect("UTF-8 path");
+    for preset in ["curve", "lane_drop"] {
+        let status = rtr()
+            .args(["map", "export", "--procedural", preset, "--out", own_str])
+            .stdout(Stdio::null())
+            .status()
+            .expect("runs");
+        assert!(status.success(), "map export {preset}");
+    }
 }
 
 /// `rtr model average` of two shipped models into `out`.

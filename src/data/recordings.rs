@@ -319,6 +319,13 @@ impl Recordings {
 }
 
 /// The required header as one CSV line.
+/// Recordings as an output: a `.csv` file that starts with the recordings header.
+pub const RECORDINGS_CSV: crate::io::FileKind = crate::io::FileKind {
+    name: "a recordings CSV",
+    extensions: &["csv"],
+    recognise: |head| head.starts_with(expected_header().as_bytes()),
+};
+
 fn expected_header() -> String {
     REQUIRED.join(",")
 }

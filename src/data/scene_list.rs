@@ -49,6 +49,28 @@ pub fn parse_scene_list(text: &str, source_name: &str) -> Result<Vec<String>> {
     Ok(ids)
 }
 
+/// A scene list as an output: a `.txt` or `.list` file that reads as one.
+pub const SCENE_LIST: crate::io::FileKind = crate::io::FileKind {
+    name: "a scene list",
+    extensions: &["txt", "list"],
+    recognise: reads_as_scene_list,
+};
+
+/// Whether `head`, a file's first bytes, reads as a scene list (its last line may be cut).
+fn reads_as_scene_list(head: &[u8]) -> bool {
+    let Ok(text) = std::str::from_utf8(head).or_else(|e| {
+        // A cut through a multi-byte character at the end of the head.
+        std::str::from_utf8(&head[..e.valid_up_to()])
+    }) else {
+        return false;
+    };
+    let whole_lines = match text.rfind('\n') {
+        Some(end) if head.len() >= crate::io::RECOGNISED_BYTES => &text[..end],
+        _ => text,
+    };
+    parse_scene_list(whole_lines, "").is_ok()
+}
+
 /// Writes `ids` to `path` atomically, after `header` as `#` comment lines.
 pub fn write_scene_list(path: &Path, header: &str, ids: &[String]) -> Result<()> {
     let mut text: String = header.lines().map(|l| format!("# {l}\n")).collect();

@@ -35,16 +35,31 @@ impl Inputs {
     }
 }
 
+/// What an output file is: an existing file is replaced only by one of its kind.
+#[derive(Debug, Clone, Copy)]
+pub struct FileKind {
+    /// How messages name it ("a scene list").
+    pub name: &'static str,
+    /// The file name extensions it is written under (compared in any case).
+    pub extensions: &'static [&'static str],
+    /// Whether a file's first bytes (up to [`RECOGNISED_BYTES`], possibly cut mid-line) are
+    /// of this kind.
+    pub recognise: fn(&[u8]) -> bool,
+}
+
+/// How much of an existing output file is read to tell its kind.
+pub const RECOGNISED_BYTES: usize = 64 * 1024;
+
 /// Checks, before any work, that the file `path` (given with `flag`) can be written and is
-/// none of `inputs`, nor inside an input folder, and that a file already there is of a kind
-/// the command writes (one of `extensions`, any case): a run file or recordings of the user's
-/// are not replaced by a scene list or a map. Then locks it against other rtr processes until
-/// the returned claim is dropped.
+/// none of `inputs`, nor inside an input folder, and that a file already there is of `kind`,
+/// by name and by content: a run file, recordings or notes of the user's are not replaced by
+/// a scene list or a map (`notes.txt` is no scene list though both end in `.txt`). Then locks
+/// it against other rtr processes until the returned claim is dropped.
 pub fn claim_output_file(
     path: &Path,
     flag: &str,
     inputs: &Inputs,
-    extensions: &[&str],
+    kind: &FileKind,
 ) -> Result<OutputClaim> {
     // An input first: that says more than "is a file" of the same path.
     refuse_overlap(path, flag, inputs)?;
@@ -52,15 +67,16 @@ pub fn claim_output_file(
     let target = resolved(path);
     refuse_inside_a_claim(&target, path, flag)?;
     refuse_inside_a_result_set(&target, path, flag)?;
-    refuse_replacing_another_kind(path, flag, extensions)?;
+    refuse_replacing_another_kind(path, flag, kind)?;
     let claim = lock(&target, path, flag)?;
     // Under the lock: the temporary file a killed writer of this output left is nobody's.
     super::output::remove_stale_temporaries(folder_of(&target));
     Ok(claim)
 }
 
-/// Refuses an existing file at `path` whose extension is none of `extensions`.
-fn refuse_replacing_another_kind(path: &Path, flag: &str, extensions: &[&str]) -> Result<()> {
+/// Refuses an existing file at `path` whose extension is none of `kind`'s, or whose content
+/// is not of `kind` (an empty file holds nothing to lose).
+fn refuse_replacing_another_kind(path: &Path, flag: &str, kind: &FileKind) -> Result<()> {
     if !path.is_file() {
         return Ok(());
     }
@@ -68,16 +84,32 @@ fn refuse_replacing_another_kind(path: &Path, flag: &str, extensions: &[&str]) -
         .file_name()
         .map(|n| n.to_string_lossy().to_lowercase())
         .unwrap_or_default();
-    if extensions.iter().any(|e| name.ends_with(&format!(".{e}"))) {
+    let refuse = |why: String| {
+        Err(Error::InvalidArgument(format!(
+            "{flag} {} exists and {why}; it would be replaced: choose another {flag}, or \
+             remove it first",
+            path.display()
+        )))
+    };
+    if !kind
+        .extensions
+        .iter()
+        .any(|e| name.ends_with(&format!(".{e}")))
+    {
+        let names: Vec<String> = kind.extensions.iter().map(|e| format!(".{e}")).collect();
+        return refuse(format!(
+            "is not a file this command writes ({})",
+            names.join(" or ")
+        ));
+    }
+    let head = super::input::read_head(path, RECOGNISED_BYTES)?;
+    if head.is_empty() || (kind.recognise)(&head) {
         return Ok(());
     }
-    let kinds: Vec<String> = extensions.iter().map(|e| format!(".{e}")).collect();
-    Err(Error::InvalidArgument(format!(
-        "{flag} {} exists and is not a file this command writes ({}); it would be replaced: \
-         choose another {flag}, or remove it first",
-        path.display(),
-        kinds.join(" or ")
-    )))
+    refuse(format!(
+        "is not {} (its content is not what this command writes)",
+        kind.name
+    ))
 }
 
 /// An output claimed by [`claim_output_file`] or [`claim_output_folder`]; the claim lasts as
@@ -452,10 +484,8 @@ mod tests {
         assert_eq!(lock_files(), 0, "the lock file goes with its claim");
         let _claim = claim_output_folder(&out, "--out", &Inputs::new()).expect("free again");
         let file = dir.path().join("report.json");
-        let _report =
-            claim_output_file(&file, "--report", &Inputs::new(), &["json"]).expect("a file");
-        let err =
-            claim_output_file(&file, "--report", &Inputs::new(), &["json"]).expect_err("twice");
+        let _report = claim_output_file(&file, "--report", &Inputs::new(), &JSON).expect("a file");
+        let err = claim_output_file(&file, "--report", &Inputs::new(), &JSON).expect_err("twice");
         assert!(err.to_string().contains("another rtr process"), "{err}");
     }
 
@@ -475,26 +505,48 @@ mod tests {
         assert!(!held.exists());
     }
 
+    /// A CSV whose header starts with `track_id`.
+    const CSV: FileKind = FileKind {
+        name: "a track CSV",
+        extensions: &["csv"],
+        recognise: |head| head.starts_with(b"track_id"),
+    };
+
+    /// Any `.json` file.
+    const JSON: FileKind = FileKind {
+        name: "JSON",
+        extensions: &["json"],
+        recognise: |_| true,
+    };
+
     #[test]
     fn an_existing_file_of_another_kind_is_not_replaced() {
         let dir = tempfile::tempdir().expect("temp dir");
         let run_file = dir.path().join("run.toml");
         std::fs::write(&run_file, "method = \"IL\"\n").expect("write");
-        let err = claim_output_file(&run_file, "--out", &Inputs::new(), &["csv"])
+        let err = claim_output_file(&run_file, "--out", &Inputs::new(), &CSV)
             .expect_err("a run file is not recordings")
             .to_string();
         assert!(err.contains("run.toml") && err.contains("(.csv)"), "{err}");
         let old = dir.path().join("old.CSV");
         std::fs::write(&old, "track_id\n").expect("write");
-        drop(claim_output_file(&old, "--out", &Inputs::new(), &["csv"]).expect("its own kind"));
+        drop(claim_output_file(&old, "--out", &Inputs::new(), &CSV).expect("its own kind"));
+        // The right name is not enough: a user's table under the same extension stays.
+        let table = dir.path().join("table.csv");
+        std::fs::write(&table, "name,score\nx,1\n").expect("write");
+        let err = claim_output_file(&table, "--out", &Inputs::new(), &CSV)
+            .expect_err("another CSV")
+            .to_string();
+        assert!(
+            err.contains("table.csv") && err.contains("is not a track CSV"),
+            "{err}"
+        );
+        let empty = dir.path().join("empty.csv");
+        std::fs::write(&empty, "").expect("write");
+        drop(claim_output_file(&empty, "--out", &Inputs::new(), &CSV).expect("nothing to lose"));
         drop(
-            claim_output_file(
-                &dir.path().join("new.toml"),
-                "--out",
-                &Inputs::new(),
-                &["csv"],
-            )
-            .expect("a new file, whatever its name"),
+            claim_output_file(&dir.path().join("new.toml"), "--out", &Inputs::new(), &CSV)
+                .expect("a new file, whatever its name"),
         );
     }
 
@@ -517,8 +569,7 @@ mod tests {
             model.join("policy.bpk"),
             eval.join("figures/extra.png"),
         ] {
-            let err =
-                claim_output_file(&file, "--out", &Inputs::new(), &["json"]).expect_err("inside");
+            let err = claim_output_file(&file, "--out", &Inputs::new(), &JSON).expect_err("inside");
             assert!(err.to_string().contains("result set"), "{err}");
         }
         let err = claim_output_folder(&run.join("checkpoints/mean"), "--out", &Inputs::new())
@@ -530,7 +581,7 @@ mod tests {
             &dir.path().join("r.json"),
             "--report",
             &Inputs::new(),
-            &["json"],
+            &JSON,
         )
         .expect("beside it");
     }
@@ -570,8 +621,7 @@ mod tests {
             let err = claim_output_folder(&out, "--out", &inputs).expect_err("overlap");
             assert!(err.to_string().contains(why), "{err}");
         }
-        let err =
-            claim_output_file(&run_file, "--report", &inputs, &["json"]).expect_err("same file");
+        let err = claim_output_file(&run_file, "--report", &inputs, &JSON).expect_err("same file");
         assert!(err.to_string().contains("is the input --config"), "{err}");
         let _claim = claim_output_folder(&dir.path().join("runs/b"), "--out", &inputs)
             .expect("a sibling is fine");

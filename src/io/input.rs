@@ -135,6 +135,17 @@ pub fn open_regular(path: &Path) -> Result<File> {
     Ok(file)
 }
 
+/// The first `limit` bytes of the regular file `path` (all of it if shorter).
+pub fn read_head(path: &Path, limit: usize) -> Result<Vec<u8>> {
+    use std::io::Read;
+    let mut head = Vec::new();
+    open_regular(path)?
+        .take(limit as u64)
+        .read_to_end(&mut head)
+        .map_err(|e| Error::io(path, e))?;
+    Ok(head)
+}
+
 /// Why `path` is not a regular file that can be read (a folder, FIFO, device, socket, a
 /// dangling link), or `None` when it is one or does not exist at all.
 pub fn not_regular(path: &Path) -> Option<String> {

@@ -54,4 +54,4 @@ pub use query::{BEYOND_END_RANGE, BOX_OUTLINE_SPACING, BoxOnRoad, LaneProjection
 pub use raster::{RASTER_CELL, RoadRaster};
 pub use reference_line::{RefPoint, eval_road};
 pub use xodr_parse::parse_xodr;
-pub use xodr_write::to_xodr;
+pub use xodr_write::{OPENDRIVE_FILE, to_xodr};

@@ -6,6 +6,16 @@ use std::fmt::Write;
 
 use super::opendrive::*;
 
+/// An OpenDRIVE map as an output: a `.xodr` file with an `<OpenDRIVE>` element.
+pub const OPENDRIVE_FILE: crate::io::FileKind = crate::io::FileKind {
+    name: "an OpenDRIVE map",
+    extensions: &["xodr"],
+    recognise: |head| {
+        head.windows(b"<OpenDRIVE".len())
+            .any(|w| w == b"<OpenDRIVE")
+    },
+};
+
 /// Serialises a map; `parse_xodr(&to_xodr(m), ..)` returns a struct equal to `m`.
 pub fn to_xodr(map: &OpenDrive) -> String {
     let mut w = String::new();

@@ -158,6 +158,13 @@ pub fn animate_scene(
     })
 }
 
+/// An animation as an output: a `.gif` file that is one.
+pub const ANIMATION: crate::io::FileKind = crate::io::FileKind {
+    name: "a GIF animation",
+    extensions: &["gif"],
+    recognise: |head| head.starts_with(b"GIF87a") || head.starts_with(b"GIF89a"),
+};
+
 /// Encodes frames `0..count` of `frame` (RGB) in `palette` as a looping GIF at `path`, each
 /// shown `delay` hundredths of a second, the last [`LAST_FRAME_HOLD_CS`] longer.
 fn write_gif(

@@ -19,8 +19,8 @@ pub mod animation;
 mod palette;
 
 pub use animation::{
-    AnimationSummary, Infraction, InfractionKind, MAX_FPS, animate_scene, check_animation_target,
-    frame_size, window_focus,
+    ANIMATION, AnimationSummary, Infraction, InfractionKind, MAX_FPS, animate_scene,
+    check_animation_target, frame_size, window_focus,
 };
 
 const ASPHALT: RGBColor = RGBColor(150, 150, 150);
@@ -251,6 +251,21 @@ fn png_bytes(
     writer.write_image_data(rgb)?;
     writer.finish()?;
     Ok(out)
+}
+
+/// A picture as an output: a `.png` or `.svg` file that is one.
+pub const PICTURE: crate::io::FileKind = crate::io::FileKind {
+    name: "a PNG or SVG picture",
+    extensions: &["png", "svg"],
+    recognise: |head| head.starts_with(b"\x89PNG\r\n\x1a\n") || is_svg(head),
+};
+
+/// Whether `head` starts an SVG document: XML whose first bytes hold an `<svg` element.
+fn is_svg(head: &[u8]) -> bool {
+    let text = String::from_utf8_lossy(head);
+    let text = text.trim_start();
+    (text.starts_with("<?xml") || text.starts_with("<svg") || text.starts_with("<!--"))
+        && text.contains("<svg")
 }
 
 /// `PREFIX.png` and `PREFIX.svg` for an output prefix.

@@ -33,7 +33,7 @@ pub fn run(args: &RenderArgs) -> Result<()> {
         Error::InvalidArgument(why) => Error::InvalidArgument(format!("--out {why}")),
         other => other,
     })?;
-    let _claim = claim_output_file(&args.out, "--out", &args.inputs()?, &["gif"])?;
+    let _claim = claim_output_file(&args.out, "--out", &args.inputs()?, &rtr::render::ANIMATION)?;
     let driver = load_driver(args)?;
     // The view: where every car of a recorded scene drives, in the log and in the rollout; a
     // scenario's target and heroes only (its other cars spread over a kilometre of road).

@@ -136,7 +136,12 @@ pub fn image_targets(
             Error::InvalidArgument(why) => Error::InvalidArgument(format!("--out {why}")),
             other => other,
         })?;
-        claims.push(claim_output_file(path, "--out", inputs, &["png", "svg"])?);
+        claims.push(claim_output_file(
+            path,
+            "--out",
+            inputs,
+            &rtr::render::PICTURE,
+        )?);
     }
     Ok((paths, claims))
 }

@@ -6,6 +6,7 @@ use clap::Args;
 
 use rtr::backend::Backend;
 use rtr::data::SceneConfig;
+use rtr::data::scene_list::SCENE_LIST;
 use rtr::eval::curate::{SceneOutcome, scene_outcomes};
 use rtr::eval::{EvalConfig, TrainedPolicy};
 use rtr::io::{Inputs, claim_output_file};
@@ -38,7 +39,7 @@ pub fn run(args: CurateArgs) -> Result<()> {
         "--checkpoint",
         [&args.checkpoint],
     )?;
-    let _claim = claim_output_file(&args.out, "--out", &inputs, &["txt", "list"])?;
+    let _claim = claim_output_file(&args.out, "--out", &inputs, &SCENE_LIST)?;
     let device = args.backend.device(false)?;
     let trained = TrainedPolicy::load(&args.checkpoint, &device)?;
     let dataset = args.data.load()?;

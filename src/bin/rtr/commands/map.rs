@@ -68,7 +68,8 @@ pub fn run(command: MapCommand) -> Result<()> {
             Ok(())
         }
         MapCommand::Export { source, out } => {
-            let _claim = claim_output_file(&out, "--out", &source.inputs(), &["xodr"])?;
+            let _claim =
+                claim_output_file(&out, "--out", &source.inputs(), &rtr::map::OPENDRIVE_FILE)?;
             let map = source.load()?;
             let od = map.opendrive().ok_or_else(|| {
                 Error::InvalidArgument(format!("{} is not an OpenDRIVE map", map.source()))

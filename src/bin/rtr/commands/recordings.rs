@@ -4,6 +4,7 @@ use std::path::PathBuf;
 
 use clap::Subcommand;
 
+use rtr::data::recordings::RECORDINGS_CSV;
 use rtr::io::{Inputs, claim_output_file};
 use rtr::sim2real::{CommandTiming, Effect, GeneratorConfig, SensorNoise, Uncatalogued, generate};
 use rtr::{Error, Result};
@@ -58,7 +59,7 @@ pub fn run(command: RecordingsCommand) -> Result<()> {
         values,
         out,
     } = command;
-    let _claim = claim_output_file(&out, "--out", &Inputs::new(), &["csv"])?;
+    let _claim = claim_output_file(&out, "--out", &Inputs::new(), &RECORDINGS_CSV)?;
     let mut config = match effect.as_str() {
         "none" => GeneratorConfig::with_effect(None, seed),
         name => match (Effect::from_name(name), Uncatalogued::typical(name)) {
