@@ -626,7 +626,9 @@ fn eval_prints_the_table_row_and_writes_the_documented_json() {
     let out = eval_into(&dir.path().join("tampered"));
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
-        !out.status.success() && err.contains("sha256") && err.contains("after training"),
+        !out.status.success()
+            && err.contains("sha256")
+            && err.contains("changed or corrupted since"),
         "{err}"
     );
 }

@@ -322,3 +322,33 @@ fn the_readme_states_the_headline_verdict_of_the_main_table() {
     let stated = format!("**Verdict: the paper's headline {}.**", verdict.summary());
     assert!(readme.contains(&stated), "README.md should say {stated}");
 }
+
+/// Every shipped model's card records its weights' sha256, and the weights still match: a
+/// changed `policy.bpk` is refused wherever it loads, and a model added without the record
+/// fails here.
+#[test]
+fn every_shipped_models_card_records_its_weights() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models");
+    let mut checked = 0;
+    for entry in std::fs::read_dir(&root).expect("models/") {
+        let dir = entry.expect("entry").path();
+        if !dir.join("policy.bpk").is_file() {
+            continue;
+        }
+        let card = std::fs::read_to_string(dir.join("CARD.md")).expect("card");
+        let recorded = card
+            .split(rtr::train::recorded_weights::CARD_WEIGHTS)
+            .nth(1)
+            .and_then(|rest| rest.split('`').next())
+            .unwrap_or_else(|| panic!("{}: no weights line", dir.display()));
+        let bytes = std::fs::read(dir.join("policy.bpk")).expect("weights");
+        assert_eq!(
+            recorded,
+            rtr::data::automatum::sha256_hex(&bytes),
+            "{}",
+            dir.display()
+        );
+        checked += 1;
+    }
+    assert!(checked >= 10, "{checked} models");
+}

@@ -17,6 +17,9 @@ use crate::model::weight_average::average_parameters;
 pub struct AveragedSources {
     pub method: String,
     pub sources: Vec<Source>,
+    /// The sha256 of the averaged `policy.bpk`: weights changed since are refused wherever
+    /// they load ([`crate::train::recorded_weights`]).
+    pub policy_sha256: String,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -90,15 +93,17 @@ pub fn write_averaged_policy(
             )));
         }
     }
-    let report = AveragedSources {
-        method: first.method.clone(),
-        sources,
-    };
     let config_text = config_for(first)?;
+    let method = first.method.clone();
     let networks = policies.into_iter().map(|p| p.network).collect();
     let mean = average_parameters(networks).map_err(Error::InvalidArgument)?;
     let policy_path = out.join("policy.bpk");
     let bytes = crate::train::checkpoint::module_bytes(&mean, &policy_path)?;
+    let report = AveragedSources {
+        method,
+        sources,
+        policy_sha256: sha256_hex(&bytes),
+    };
     let json = serde_json::to_string_pretty(&report)
         .map_err(|e| Error::InvalidArgument(format!("cannot encode averaged.json: {e}")))?;
     // The policy goes last: a folder with a policy.bpk is complete.

@@ -21,11 +21,11 @@ use crate::error::{Error, Result};
 use crate::io::atomic_write;
 use crate::model::{ModelConfig, PolicyNetwork, ValueNetwork};
 
-const POLICY: &str = "policy.bpk";
+pub(super) const POLICY: &str = "policy.bpk";
 const VALUE: &str = "value.bpk";
 const POLICY_OPTIMIZER: &str = "policy_optimizer.bpk";
 const VALUE_OPTIMIZER: &str = "value_optimizer.bpk";
-const STATE: &str = "state.json";
+pub(super) const STATE: &str = "state.json";
 const LATEST: &str = "latest";
 /// Checkpoints kept besides the newest (older ones are deleted) unless `run.keep_checkpoints`
 /// says otherwise.
@@ -212,7 +212,7 @@ fn refuse_oversized<M: Module>(module: &M, path: &Path) -> Result<()> {
 pub fn load_module<M: Module>(module: M, path: &Path) -> Result<M> {
     refuse_oversized(&module, path)?;
     let bytes = crate::io::read_bytes(path, crate::io::Format::Parameters)?;
-    verify_recorded_digest(path, &bytes)?;
+    super::recorded_weights::verify(path, &bytes)?;
     let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(bytes))
         .map_err(|e| record_error(path, e))?;
     let module = module
@@ -468,46 +468,6 @@ fn verify_checksums(dir: &Path, state: &LoopState) -> Result<()> {
         }
     }
     Ok(())
-}
-
-/// Checks the tensor file `path`, read as `bytes`, against the sha256 its run recorded: a
-/// checkpoint's own files against its `state.json`, a finished run's `policy.bpk` (a copy of
-/// its last checkpoint's) against its newest checkpoint's. Weights changed after training
-/// would otherwise pass for the trained ones wherever they are loaded (evaluation, a warm
-/// start, a KL reference). Files without a record (a `models/` folder, checkpoints written
-/// before checksums were kept) are not checked.
-fn verify_recorded_digest(path: &Path, bytes: &[u8]) -> Result<()> {
-    let folder = path.parent().unwrap_or(Path::new("."));
-    let Some(name) = path.file_name().and_then(|n| n.to_str()) else {
-        return Ok(());
-    };
-    let recorded = if folder.join(STATE).is_file() {
-        Some(folder.to_path_buf())
-    } else if name == POLICY {
-        latest(folder)?
-    } else {
-        None
-    };
-    let Some(dir) = recorded else {
-        return Ok(());
-    };
-    let state = read_state(&dir)?;
-    let Some(expected) = state.checksums.get(name) else {
-        return Ok(());
-    };
-    let actual = sha256_hex(bytes);
-    if &actual == expected {
-        return Ok(());
-    }
-    Err(Error::invalid(
-        path.display().to_string(),
-        "sha256",
-        format!(
-            "is {actual}, but {} recorded {expected} when its run saved it: the weights were \
-             changed or corrupted after training",
-            dir.join(STATE).display()
-        ),
-    ))
 }
 
 /// The loop state of the checkpoint in `dir` (without its networks).

@@ -27,6 +27,7 @@ pub mod imitation;
 pub mod perturbation;
 pub mod ppo;
 pub mod probe;
+pub mod recorded_weights;
 pub mod session;
 pub mod shaping;
 pub mod shards;
