@@ -75,21 +75,42 @@ pub fn load_families(dir: &Path) -> Result<Vec<LogicalScenario>> {
                 format!("family `{}` is defined twice", family.name),
             ));
         }
-        if let Some(twin) = families.iter().find(|f| f.draws_like(&family)) {
-            // A copy under another name doubles its family's share of the draws, and a
-            // held-out copy of a training family puts training scenarios into the OOD set.
+        // A copy under another name, or a part of one, doubles its family's share of the
+        // draws; a held-out family that mostly re-draws a training family's scenarios puts
+        // training scenarios into the OOD set. Two training families may overlap in part (a
+        // denser variant weights dense traffic).
+        let limit = |other: &LogicalScenario| {
+            if other.set == family.set {
+                1.0 - super::family::NEAR_COPY_RELATIVE
+            } else {
+                super::family::SHARED_DRAWS_LIMIT
+            }
+        };
+        let shared = families
+            .iter()
+            .map(|f| (f, f.shared_draws(&family)))
+            .find(|(f, share)| *share > limit(f));
+        if let Some((twin, share)) = shared {
             return Err(Error::invalid(
                 path.display().to_string(),
                 "the family",
                 format!(
-                    "`{}` ({} set) draws the same scenarios as `{}` ({} set), or a part of \
-                     them: only the name, description or set differ, and each number and range \
-                     lies within the other's (to {} %); expected each family once",
+                    "`{}` ({} set) and `{}` ({} set) draw the same scenarios: {:.0} % of one's \
+                     draws are the other's (the same map, manoeuvre and heroes, with ranges \
+                     that overlap); expected each family once, {}",
                     family.name,
                     family.set.name(),
                     twin.name,
                     twin.set.name(),
-                    super::family::NEAR_COPY_RELATIVE * 100.0
+                    share * 100.0,
+                    if twin.set == family.set {
+                        "not a copy or a part of another".to_string()
+                    } else {
+                        format!(
+                            "and a held-out family sharing at most {:.0} % with a training one",
+                            super::family::SHARED_DRAWS_LIMIT * 100.0
+                        )
+                    }
                 ),
             ));
         }
@@ -311,7 +332,8 @@ mod tests {
             let err = load_families(dir.path()).expect_err("a copy").to_string();
             assert!(
                 err.contains(&format!("{name}.toml"))
-                    && err.contains("draws the same scenarios as `brake_fast_lane`"),
+                    && err.contains("and `brake_fast_lane` (train set) draw the same scenarios")
+                    && err.contains("100 %"),
                 "{err}"
             );
         }
@@ -326,7 +348,7 @@ mod tests {
         let err = load_families(dir.path())
             .expect_err("a near copy")
             .to_string();
-        assert!(err.contains("draws the same scenarios as"), "{err}");
+        assert!(err.contains("draw the same scenarios"), "{err}");
         // A range narrowed draws a part of the family's scenarios, in either set.
         for set in ["train", "ood"] {
             let narrowed = text
@@ -335,8 +357,31 @@ mod tests {
                 .replace("station = [250, 320]", "station = [260, 300]");
             std::fs::write(dir.path().join("nudged.toml"), narrowed).expect("write");
             let err = load_families(dir.path()).expect_err("a part").to_string();
-            assert!(err.contains("or a part of"), "{err}");
+            assert!(
+                err.contains("not a copy or a part of another") || set == "ood",
+                "{err}"
+            );
+            assert!(err.contains("draw the same scenarios"), "{err}");
         }
+        // A range moved: 93 % of the draws shared is a training family's in the held-out
+        // set, but a training variant of it may overlap; 43 % shared is another family.
+        let moved = |set: &str, station: &str| {
+            let family = text
+                .replace("name = \"brake_fast_lane\"", "name = \"nudged\"")
+                .replace("set = \"train\"", &format!("set = \"{set}\""))
+                .replace("station = [250, 320]", station);
+            std::fs::write(dir.path().join("nudged.toml"), family).expect("write");
+            load_families(dir.path())
+        };
+        let err = moved("ood", "station = [255, 325]")
+            .expect_err("mostly the training family's draws")
+            .to_string();
+        assert!(
+            err.contains("93 % of one's draws") && err.contains("at most 50 %"),
+            "{err}"
+        );
+        moved("train", "station = [255, 325]").expect("a training variant");
+        moved("ood", "station = [290, 360]").expect("43 % shared");
     }
 
     /// A family whose set label disagrees with the set folder it lies in is refused there.

@@ -168,30 +168,48 @@ fn default_duration() -> f64 {
 /// scenarios: far below any difference a family means (ranges differ by metres or m/s).
 pub const NEAR_COPY_RELATIVE: f64 = 0.01;
 
-/// Whether everything `a` draws, `b` draws too: alike in shape and strings, each number of
-/// `a` equal to `b`'s or inside `b`'s range, each range (`[low, high]`) of `a` inside `b`'s,
-/// to within [`NEAR_COPY_RELATIVE`].
-fn within(a: &serde_json::Value, b: &serde_json::Value) -> bool {
+/// The share of one family's draws that another family draws too, above which the two are
+/// one family under two names: a held-out family that mostly re-draws a training family's
+/// scenarios tests nothing held out.
+pub const SHARED_DRAWS_LIMIT: f64 = 0.5;
+
+/// The share of what `a` draws that `b` draws too, for draws uniform over `a`'s ranges: the
+/// product over `a`'s ranges of the part of each inside `b`'s (a fixed number counts 1 if `b`
+/// has it or draws it, else 0), to within [`NEAR_COPY_RELATIVE`]; 0 where the two differ in
+/// shape or in a string (another map, another manoeuvre).
+fn shared_draws(a: &serde_json::Value, b: &serde_json::Value) -> f64 {
     use serde_json::Value;
     let slack = |x: f64, y: f64| NEAR_COPY_RELATIVE * x.abs().max(y.abs()) + 1e-9;
-    let inside =
-        |x: f64, (low, high): (f64, f64)| x >= low - slack(x, low) && x <= high + slack(x, high);
+    let inside = |x: f64, (low, high): (f64, f64)| {
+        f64::from(u8::from(
+            x >= low - slack(x, low) && x <= high + slack(x, high),
+        ))
+    };
     match (a, b, range(a), range(b)) {
-        (_, _, Some((low, high)), Some(other)) => inside(low, other) && inside(high, other),
-        (Value::Number(x), _, _, Some(other)) => x.as_f64().is_some_and(|x| inside(x, other)),
+        (_, _, Some((low, high)), Some(other)) => {
+            // Within `b`'s range up to the slack: all shared; else the part that overlaps.
+            if inside(low, other) * inside(high, other) == 1.0 {
+                return 1.0;
+            }
+            let (b_low, b_high) = other;
+            if high <= low {
+                return 0.0;
+            }
+            ((high.min(b_high) - low.max(b_low)) / (high - low)).clamp(0.0, 1.0)
+        }
+        (Value::Number(x), _, _, Some(other)) => x.as_f64().map_or(0.0, |x| inside(x, other)),
         (Value::Number(x), Value::Number(y), _, _) => match (x.as_f64(), y.as_f64()) {
-            (Some(x), Some(y)) => (x - y).abs() <= slack(x, y),
-            _ => false,
+            (Some(x), Some(y)) => f64::from(u8::from((x - y).abs() <= slack(x, y))),
+            _ => 0.0,
         },
-        (Value::Array(x), Value::Array(y), _, _) => {
-            x.len() == y.len() && x.iter().zip(y).all(|(p, q)| within(p, q))
+        (Value::Array(x), Value::Array(y), _, _) if x.len() == y.len() => {
+            x.iter().zip(y).map(|(p, q)| shared_draws(p, q)).product()
         }
-        (Value::Object(x), Value::Object(y), _, _) => {
-            x.len() == y.len()
-                && x.iter()
-                    .all(|(k, v)| y.get(k).is_some_and(|w| within(v, w)))
-        }
-        _ => a == b,
+        (Value::Object(x), Value::Object(y), _, _) if x.len() == y.len() => x
+            .iter()
+            .map(|(k, v)| y.get(k).map_or(0.0, |w| shared_draws(v, w)))
+            .product(),
+        _ => f64::from(u8::from(a == b)),
     }
 }
 
@@ -217,11 +235,11 @@ impl FamilySet {
 }
 
 impl LogicalScenario {
-    /// Whether one of `self` and `other` draws the other's concrete scenarios or a part of
-    /// them: everything but the name, the description and the set agrees, each number and
-    /// range of one lying within the other's (to [`NEAR_COPY_RELATIVE`]). A bound nudged by a
-    /// hair, or a range narrowed, does not make another family.
-    pub fn draws_like(&self, other: &Self) -> bool {
+    /// The larger share of one family's draws that the other draws too (see
+    /// [`SHARED_DRAWS_LIMIT`]): 1 for a copy, a bound nudged by a hair or a range narrowed;
+    /// 0 for families of another map, manoeuvre or number of heroes. Name, description and
+    /// set do not count.
+    pub fn shared_draws(&self, other: &Self) -> f64 {
         let drawn = |family: &Self| {
             let mut value = serde_json::to_value(family).unwrap_or_default();
             if let Some(fields) = value.as_object_mut() {
@@ -232,7 +250,7 @@ impl LogicalScenario {
             value
         };
         let (a, b) = (drawn(self), drawn(other));
-        within(&a, &b) || within(&b, &a)
+        shared_draws(&a, &b).max(shared_draws(&b, &a))
     }
 
     /// Every value a concrete scenario of this family draws, by the name it is recorded under
