@@ -173,6 +173,31 @@ fn duplicate_column_is_rejected() {
     assert_contains(&message, &["line 1", "`x`", "twice"]);
 }
 
+/// Extra columns are ignored, but one named like a known column misspelt is refused: its
+/// values (a wheelbase) would be dropped without a word.
+#[test]
+fn a_misspelt_column_is_refused_and_other_extras_ignored() {
+    for (column, expected) in [
+        ("wheelbse", "`wheelbase`"),
+        ("Wheelbase", "`wheelbase`"),
+        ("steer_cmmd", "`steer_cmd`"),
+        ("X", "`x`"),
+    ] {
+        let message = error(&format!("{HEADER},{column}\na,0,0,0,0,1,0,0,4.2\n"));
+        assert_contains(
+            &message,
+            &["line 1, column 9", column, expected, "misspelt"],
+        );
+    }
+    for extra in ["z", "id", "lat", "lane", "note"] {
+        let text = format!(
+            "{HEADER},{extra}\na,0.0,0,0,0,1,0,0,1\na,0.1,0.1,0,0,1,0,0,1\na,0.2,0.2,0,0,1,0,0,1\n"
+        );
+        Recordings::parse("rec.csv", &text)
+            .unwrap_or_else(|e| panic!("`{extra}` is another column: {e}"));
+    }
+}
+
 #[test]
 fn empty_file_is_rejected() {
     assert_contains(&error(""), &["line 1", "empty", HEADER]);

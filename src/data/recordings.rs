@@ -14,7 +14,8 @@
 //! | `steer_cmd` | commanded road-wheel steering angle                  | rad   |
 //!
 //! An optional `wheelbase` column (m) may be given per row; within a track it must be constant
-//! and given on every row or on none. Other columns are ignored. Fields are trimmed of
+//! and given on every row or on none. Other columns are ignored, except one named like a
+//! column above misspelt (`wheelbse`), which is refused. Fields are trimmed of
 //! surrounding whitespace; blank lines are skipped.
 //!
 //! Rows are grouped by `track_id` (tracks keep the order of their first row, rows keep file
@@ -381,6 +382,42 @@ struct Columns {
     wheelbase: Option<usize>,
 }
 
+/// Refuses an extra column whose name is a known column's misspelt (`wheelbse`, `Speed`):
+/// ignored like any other extra column, it would silently drop what the user recorded (a
+/// 4.2 m wheelbase read as the 2.8 m default). A near miss is a case-insensitive match, or
+/// one edit away for names of four letters or more, two for eight or more; short names
+/// (`t`, `x`, `y`) are only matched up to case, since `z` or `id` are other columns.
+fn refuse_misspelt_columns(source: &str, header: &csv::StringRecord) -> Result<()> {
+    let known: Vec<&str> = REQUIRED.iter().copied().chain([WHEELBASE]).collect();
+    let near = |given: &str, name: &str| {
+        let (given, name) = (given.to_lowercase(), name.to_lowercase());
+        let edits = strsim::damerau_levenshtein(&given, name.as_str());
+        let allowed = match name.chars().count() {
+            0..4 => 0,
+            4..8 => 1,
+            _ => 2,
+        };
+        edits <= allowed
+    };
+    for (k, given) in header.iter().enumerate() {
+        if known.contains(&given) {
+            continue;
+        }
+        if let Some(name) = known.iter().find(|name| near(given, name)) {
+            return Err(Error::invalid(
+                source,
+                format!("line 1, column {}", k + 1),
+                format!(
+                    "the header names `{given}`, which is no column rtr reads; expected \
+                     `{name}` (other extra columns are ignored, but this one looks like \
+                     `{name}` misspelt, and its values would be dropped)"
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
 impl Columns {
     fn find(source: &str, header: &csv::StringRecord) -> Result<Self> {
         let position = |name: &str| -> Result<Option<usize>> {
@@ -415,13 +452,14 @@ impl Columns {
                 "line 1 (header)",
                 format!(
                     "missing required column{} {}; expected a header with `{}` (any order, \
-                     optional `{WHEELBASE}`, extra columns ignored), found `{found}`",
+                     optional `{WHEELBASE}`, other columns ignored), found `{found}`",
                     if missing.len() == 1 { "" } else { "s" },
                     missing.join(", "),
                     expected_header()
                 ),
             ));
         }
+        refuse_misspelt_columns(source, header)?;
         Ok(Columns {
             required,
             wheelbase: position(WHEELBASE)?,
