@@ -132,9 +132,21 @@ fn a_resume_after_an_input_file_changed_is_refused_naming_it() {
         message.contains("dynamics") && message.contains("other contents"),
         "{message}"
     );
-    write_lag(&dynamics, 0.4);
+    // The run kept the file it read: the message's own command puts it back.
+    restore_as_told(&message);
     let rows = train(config, &run, true, None);
     assert_eq!(rows.len(), 3, "restored, the run resumes");
+}
+
+/// Runs the "`cp KEPT PATH` restores it" of `message`.
+fn restore_as_told(message: &str) {
+    let command = message
+        .split("`cp ")
+        .nth(1)
+        .and_then(|rest| rest.split('`').next())
+        .unwrap_or_else(|| panic!("no restore command in: {message}"));
+    let (kept, path) = command.split_once(' ').expect("two paths");
+    std::fs::copy(kept, path).expect("restored");
 }
 
 #[test]
@@ -161,7 +173,8 @@ fn evaluating_a_run_refuses_a_config_or_dynamics_file_changed_since_it_trained()
             "{message}"
         );
     }
-    write_lag(&dynamics, 0.4);
+    restore_as_told(&load(&run).expect_err("other physics").to_string());
+    load(&run).expect("restored from the run's own copy");
     // A hand-edited digest too short to abbreviate is named whole, not a panic.
     let state = newest.join("state.json");
     let text = std::fs::read_to_string(&state).expect("state.json");

@@ -190,15 +190,18 @@ fn check_recorded_dynamics(dir: &Path, state: &LoopState, dynamics: &Path) -> Re
     if now == then {
         return Ok(());
     }
+    // `dir` is a checkpoint, `RUN/checkpoints/iter-N`: the run keeps its inputs in RUN.
+    let run_dir = dir.ancestors().nth(2).unwrap_or(dir);
     Err(Error::invalid(
         dynamics.display().to_string(),
         "dynamics",
         format!(
             "has other contents than when the policy in {} was trained (sha256 {} then, {} \
-             now); the policy would be evaluated under other physics. Restore the file",
+             now); the policy would be evaluated under other physics: {}",
             dir.display(),
             short_digest(then),
-            short_digest(&now)
+            short_digest(&now),
+            crate::train::kept_inputs::restore_hint(run_dir, "dynamics", then, dynamics)
         ),
     ))
 }

@@ -293,7 +293,8 @@ pub fn resume_point(run_dir: &Path, resume: bool) -> Result<Option<PathBuf>> {
 
 /// Refuses a new run's folder that holds anything but what a run stopped before its first
 /// checkpoint leaves (a `config.toml` that is a run's config, a `curves.csv` with the curve
-/// columns, an empty `checkpoints/`): a file of the user's there would be replaced.
+/// columns, an empty `checkpoints/`, its kept `inputs/`): a file of the user's there would be
+/// replaced.
 fn refuse_files_without_a_run(run_dir: &Path) -> Result<()> {
     if !run_dir.is_dir() {
         return Ok(());
@@ -307,6 +308,7 @@ fn refuse_files_without_a_run(run_dir: &Path) -> Result<()> {
         }
         "curves.csv" => super::curves::read(path).is_ok(),
         "checkpoints" => crate::io::list_folder(path).is_ok_and(|entries| entries.is_empty()),
+        super::kept_inputs::KEPT_FOLDER => super::kept_inputs::is_kept_folder(path),
         _ => false,
     };
     let foreign: Vec<String> = crate::io::list_folder(run_dir)?
@@ -320,8 +322,8 @@ fn refuse_files_without_a_run(run_dir: &Path) -> Result<()> {
         return Ok(());
     }
     Err(Error::InvalidArgument(format!(
-        "{}: holds files but no run ({}); a run writes config.toml, curves.csv and \
-         checkpoints/ there, and would replace them. Choose an empty or new folder",
+        "{}: holds files but no run ({}); a run writes config.toml, curves.csv, inputs/ \
+         and checkpoints/ there, and would replace them. Choose an empty or new folder",
         run_dir.display(),
         foreign.join(", ")
     )))

@@ -154,10 +154,11 @@ fn folder_digests(config: &TrainConfig) -> Result<BTreeMap<String, String>> {
 /// without digests (an older checkpoint) has nothing to compare; one recorded with a digest
 /// per folder is compared folder by folder.
 pub fn changed_input(
+    run_dir: &Path,
     recorded: &BTreeMap<String, String>,
     config: &TrainConfig,
     compare: Compare,
-) -> Result<Option<String>> {
+) -> Result<Option<Change>> {
     if recorded.is_empty() {
         return Ok(None);
     }
@@ -172,14 +173,22 @@ pub fn changed_input(
     let per_folder = folder_digests(config)?;
     for (&input, &then) in &recorded {
         let current = now.get(input).or_else(|| per_folder.get(input));
+        let (field, path) = input.split_once(' ').unwrap_or((input.as_str(), ""));
         let change = match current {
             Some(current) if current == then => continue,
-            Some(current) => format!(
-                "{input} has other contents than when the run started (sha256 {} then, {} now)",
-                short_digest(then),
-                short_digest(current)
-            ),
-            None => format!("{input} is no longer read (removed, or not named by this config)"),
+            Some(current) => Change {
+                what: format!(
+                    "{input} has other contents than when the run started (sha256 {} then, {} \
+                     now)",
+                    short_digest(then),
+                    short_digest(current)
+                ),
+                restore: super::kept_inputs::restore_hint(run_dir, field, then, Path::new(path)),
+            },
+            None => Change {
+                what: format!("{input} is no longer read (removed, or not named by this config)"),
+                restore: "restore the file".into(),
+            },
         };
         return Ok(Some(change));
     }
@@ -187,9 +196,20 @@ pub fn changed_input(
     // with a digest per folder has compared it above.
     let per_file = !recorded.keys().any(|k| per_folder.contains_key(*k));
     if per_file && let Some(added) = now.keys().find(|k| !recorded.contains_key(k)) {
-        return Ok(Some(format!("{added} was not there when the run started")));
+        return Ok(Some(Change {
+            what: format!("{added} was not there when the run started"),
+            restore: "remove it".into(),
+        }));
     }
     Ok(None)
+}
+
+/// An input that changed since a run started, and how to undo the change.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Change {
+    pub what: String,
+    /// "restore the file", or the command that puts the run's kept copy back.
+    pub restore: String,
 }
 
 /// The sha256 a run recorded for its dynamics file, if it read one.
@@ -206,12 +226,14 @@ pub fn check_unchanged(
     recorded: &BTreeMap<String, String>,
     config: &TrainConfig,
 ) -> Result<()> {
-    match changed_input(recorded, config, Compare::Resume)? {
+    match changed_input(run_dir, recorded, config, Compare::Resume)? {
         None => Ok(()),
         Some(change) => Err(Error::InvalidArgument(format!(
-            "{}: {change}; resuming would change the run's physics or data mid-run. Restore \
-             the file, or start a new --out folder",
-            run_dir.display()
+            "{}: {}; resuming would change the run's physics or data mid-run: {}, or start a \
+             new --out folder",
+            run_dir.display(),
+            change.what,
+            change.restore
         ))),
     }
 }
@@ -227,7 +249,14 @@ pub fn check_same_run(run_dir: &Path, config: &TrainConfig) -> Result<()> {
     let stored = TrainConfig::from_toml_str(&state.config_toml, &newest.display().to_string())?;
     let difference = match stored.identity_difference(config)? {
         Some(difference) => Some(difference),
-        None => changed_input(&state.input_digests, config, Compare::Reuse)?,
+        None => {
+            changed_input(run_dir, &state.input_digests, config, Compare::Reuse)?.map(|change| {
+                format!(
+                    "{}; to use the run as it was, {}",
+                    change.what, change.restore
+                )
+            })
+        }
     };
     match difference {
         None => Ok(()),
@@ -253,17 +282,45 @@ mod tests {
         let then = input_digests(&config).expect("digests");
         assert_eq!(then.len(), 1);
         assert!(
-            changed_input(&then, &config, Compare::Resume)
+            changed_input(dir.path(), &then, &config, Compare::Resume)
                 .expect("compare")
                 .is_none()
         );
+        // The run keeps what it read: once the file is replaced, the message says how to
+        // put it back.
+        let run = dir.path().join("run");
+        crate::train::kept_inputs::keep(&run, &config).expect("kept");
         std::fs::write(&dynamics, "[steering_lag]\ntau = 0.5\n").expect("write");
-        let change = changed_input(&then, &config, Compare::Resume)
+        let change = changed_input(&run, &then, &config, Compare::Resume)
             .expect("compare")
             .expect("changed");
-        assert!(change.starts_with("dynamics "), "{change}");
+        assert!(change.what.starts_with("dynamics "), "{change:?}");
+        let copy = crate::train::kept_inputs::kept_copy(
+            &run,
+            "dynamics",
+            &then.values().next().expect("one").clone(),
+        )
+        .expect("a kept copy");
+        assert_eq!(
+            std::fs::read_to_string(&copy).expect("copy"),
+            "[steering_lag]\ntau = 0.3\n"
+        );
         assert!(
-            changed_input(&BTreeMap::new(), &config, Compare::Resume)
+            change.restore.starts_with(&format!(
+                "the run kept what it read: `cp {}",
+                copy.display()
+            )),
+            "{change:?}"
+        );
+        assert!(crate::train::kept_inputs::is_kept_folder(
+            &run.join("inputs")
+        ));
+        std::fs::write(run.join("inputs/notes.txt"), "mine").expect("write");
+        assert!(!crate::train::kept_inputs::is_kept_folder(
+            &run.join("inputs")
+        ));
+        assert!(
+            changed_input(dir.path(), &BTreeMap::new(), &config, Compare::Resume)
                 .expect("compare")
                 .is_none(),
             "an old checkpoint"
@@ -291,35 +348,35 @@ mod tests {
         std::fs::write(sets.join("train/notes.txt"), "mine").expect("write");
         std::fs::write(sets.join(".rtr-output"), "train/a.json\n").expect("write");
         assert!(
-            changed_input(&then, &config, Compare::Resume)
+            changed_input(dir.path(), &then, &config, Compare::Resume)
                 .expect("compare")
                 .is_none()
         );
         // A changed or added training scenario is named.
         std::fs::write(sets.join("train/a.json"), "{ }").expect("write");
-        let change = changed_input(&then, &config, Compare::Resume)
+        let change = changed_input(dir.path(), &then, &config, Compare::Resume)
             .expect("compare")
             .expect("changed");
-        assert!(change.contains("train/a.json"), "{change}");
+        assert!(change.what.contains("train/a.json"), "{change:?}");
         std::fs::write(sets.join("train/a.json"), "{}").expect("write");
         std::fs::write(sets.join("train/b.json"), "{}").expect("write");
-        let change = changed_input(&then, &config, Compare::Resume)
+        let change = changed_input(dir.path(), &then, &config, Compare::Resume)
             .expect("compare")
             .expect("added");
         assert!(
-            change.contains("train/b.json") && change.contains("not there"),
-            "{change}"
+            change.what.contains("train/b.json") && change.what.contains("not there"),
+            "{change:?}"
         );
         // A run recorded with the folder's digest: compared as a whole.
-        let change = changed_input(&legacy, &config, Compare::Resume)
+        let change = changed_input(dir.path(), &legacy, &config, Compare::Resume)
             .expect("compare")
             .expect("changed");
-        assert!(change.contains("has other contents"), "{change}");
+        assert!(change.what.contains("has other contents"), "{change:?}");
         std::fs::remove_file(sets.join("train/b.json")).expect("remove");
         std::fs::write(sets.join("eval/a.json"), "{}").expect("write");
         std::fs::remove_file(sets.join("train/notes.txt")).expect("remove");
         assert!(
-            changed_input(&legacy, &config, Compare::Resume)
+            changed_input(dir.path(), &legacy, &config, Compare::Resume)
                 .expect("compare")
                 .is_none()
         );
@@ -349,23 +406,23 @@ mod tests {
         );
         std::fs::write(warm.join("policy.bpk"), "other weights").expect("write");
         assert!(
-            changed_input(&then, &config, Compare::Resume)
+            changed_input(dir.path(), &then, &config, Compare::Resume)
                 .expect("compare")
                 .is_none()
         );
-        let change = changed_input(&then, &config, Compare::Reuse)
+        let change = changed_input(dir.path(), &then, &config, Compare::Reuse)
             .expect("compare")
             .expect("changed");
         assert!(
-            change.starts_with("init.policy ") && change.contains("other contents"),
-            "{change}"
+            change.what.starts_with("init.policy ") && change.what.contains("other contents"),
+            "{change:?}"
         );
         let now = input_digests(&config).expect("digests");
         assert_eq!(resumed_digests(&then, now.clone()), then);
         // Gone, it stops neither a resume nor the record of what the run was trained from.
         std::fs::remove_file(warm.join("policy.bpk")).expect("remove");
         assert!(
-            changed_input(&then, &config, Compare::Resume)
+            changed_input(dir.path(), &then, &config, Compare::Resume)
                 .expect("compare")
                 .is_none()
         );
@@ -382,7 +439,7 @@ mod tests {
                 .any(|k| is_warm_start(k))
         );
         assert!(
-            changed_input(&older, &config, Compare::Reuse)
+            changed_input(dir.path(), &older, &config, Compare::Reuse)
                 .expect("compare")
                 .is_none()
         );

@@ -24,6 +24,7 @@ pub mod gae;
 pub mod gradients;
 pub mod identity;
 pub mod imitation;
+pub mod kept_inputs;
 pub mod perturbation;
 pub mod ppo;
 pub mod probe;

@@ -314,6 +314,7 @@ impl<'d> Trainer<'d> {
         // Everything that can refuse the run is loaded before the run folder is written.
         let dynamics = config.dynamics(&main.clone().inner())?;
         crate::io::create_folder(run_dir)?;
+        super::kept_inputs::keep(run_dir, &config)?;
         crate::io::atomic_write(&run_dir.join("config.toml"), state.config_toml.as_bytes())?;
         let curves_path = run_dir.join("curves.csv");
         let curves = if resume {
