@@ -278,7 +278,7 @@ fn a_result_folder_is_checked_before_the_work() {
     let users = users.to_str().expect("UTF-8");
     assert_refused(
         &["eval", "--idm", "--out", users],
-        &["table.md", "rtr did not write", "nothing was written"],
+        &["table.md", "rtr did not write", "Choose a new folder"],
     );
     assert_refused(
         &[
@@ -721,6 +721,32 @@ fn a_folder_of_the_users_is_never_written_over() {
         std::fs::read_to_string(out.join("table.md")).expect("kept"),
         "my notes"
     );
+    // A working folder whose files no result set would replace is not taken over either:
+    // once rtr's, every other output inside it would be refused.
+    let work = dir.path().join("work");
+    std::fs::create_dir_all(&work).expect("mkdir");
+    std::fs::write(work.join("todo.md"), "my list").expect("write");
+    let work_str = work.to_str().expect("UTF-8 path");
+    for args in [
+        vec!["eval", "--idm", "--scenes", "1", "--out", work_str],
+        vec![
+            "scenarios",
+            "generate",
+            "--in-distribution",
+            "8",
+            "--ood",
+            "2",
+            "--out",
+            work_str,
+        ],
+        average_into(work_str),
+    ] {
+        assert_refused(
+            &args,
+            &["holds files rtr did not write (todo.md)", "new folder"],
+        );
+    }
+    assert!(!work.join(".rtr-output").exists(), "not taken over");
     // A folder where a run writes a file is not a run's either, nor a run's file names
     // without a run.
     let odd = dir.path().join("odd");

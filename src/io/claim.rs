@@ -200,10 +200,15 @@ fn refuse_inside_a_result_set(target: &Path, shown: &Path, flag: &str) -> Result
         if held_here().contains(&parent.join(lock_name(folder))) || !is_result_set(folder) {
             continue;
         }
+        let record = folder.join(super::staged::OWN_FILES);
+        let what = if record.is_file() {
+            format!("its {} records what rtr wrote there", record.display())
+        } else {
+            "a training run or a model".to_string()
+        };
         return Err(Error::InvalidArgument(format!(
-            "{flag} {} lies inside {}, the result set of another rtr command (a training run, \
-             a model or an evaluation); writing there would change or break it: choose another \
-             {flag}",
+            "{flag} {} lies inside {}, the result set of another rtr command ({what}); writing \
+             there would change or break it: choose another {flag}",
             shown.display(),
             folder.display()
         )));

@@ -201,6 +201,7 @@ pub fn check_result_folder(target: &Path, kind: &str, names: &[&str]) -> Result<
         return Ok(());
     }
     refuse_other_kind(target, kind)?;
+    refuse_a_folder_of_the_users(target, kind)?;
     super::nested::refuse_nested_result_sets(target, kind)?;
     let earlier = own_files(target)?;
     let foreign: Vec<PathBuf> = names
@@ -218,6 +219,50 @@ pub fn check_result_folder(target: &Path, kind: &str, names: &[&str]) -> Result<
         })
         .collect();
     refuse_foreign(target, &foreign, &[])
+}
+
+/// Refuses a first result set into a folder holding files of the user's: publishing records
+/// the folder as rtr's (`.rtr-output`), after which every other rtr output inside it is
+/// refused as lying in another command's result set, so a working folder (a home, a project)
+/// would silently become closed to rtr. A result set goes into a new or empty folder, or over
+/// its own earlier set; result sets inside (a sweep's training runs) are rtr's own.
+fn refuse_a_folder_of_the_users(target: &Path, kind: &str) -> Result<()> {
+    if !matches!(recorded_kind(target)?, Kind::None) {
+        return Ok(());
+    }
+    let users: Vec<String> = super::list_folder(target)?
+        .iter()
+        .filter(|p| {
+            let name = p.file_name().map(|n| n.to_string_lossy().into_owned());
+            !super::claim::is_bookkeeping(p)
+                && !super::claim::is_result_set(p)
+                && !name.is_some_and(|n| super::is_temporary_name(&n))
+        })
+        .map(|p| {
+            let name = p.file_name().unwrap_or_default().to_string_lossy();
+            if p.is_dir() {
+                format!("{name}/")
+            } else {
+                name.into_owned()
+            }
+        })
+        .collect();
+    if users.is_empty() {
+        return Ok(());
+    }
+    let shown: Vec<&str> = users.iter().take(5).map(String::as_str).collect();
+    Err(Error::InvalidArgument(format!(
+        "{} holds files rtr did not write ({}{}); `{kind}` writes its results into a folder of \
+         their own (new, empty, or holding its earlier results), which rtr then keeps as a \
+         whole. Choose a new folder",
+        target.display(),
+        shown.join(", "),
+        if users.len() > shown.len() {
+            format!(" and {} more", users.len() - shown.len())
+        } else {
+            String::new()
+        }
+    )))
 }
 
 /// Refuses when rtr's last result set in `target` came from another command than `kind`:
