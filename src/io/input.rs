@@ -31,6 +31,8 @@ pub enum Format {
     Automatum,
     /// Vehicle recordings for sim-to-real (CSV).
     Recordings,
+    /// A run's training curves (CSV, one row of about 300 bytes per optimizer step).
+    Curves,
     /// Network parameters (burnpack) of a model or checkpoint.
     Parameters,
 }
@@ -41,6 +43,7 @@ impl Format {
         match self {
             Format::Settings => 16 * MIB,
             Format::SceneList | Format::Scenario => 64 * MIB,
+            Format::Curves => 256 * MIB,
             Format::OpenDrive | Format::CommonRoad => 512 * MIB,
             Format::Automatum | Format::Recordings => 2048 * MIB,
             Format::Parameters => 1024 * MIB,
@@ -56,6 +59,7 @@ impl Format {
             Format::CommonRoad => "a CommonRoad file",
             Format::Automatum => "an AUTOMATUM recording",
             Format::Recordings => "a recordings file",
+            Format::Curves => "a training-curves file",
             Format::Parameters => "a parameter file",
         }
     }

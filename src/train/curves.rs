@@ -60,16 +60,19 @@ impl Curves {
         }
     }
 
-    /// The rows of `path` up to `iteration`, to continue after a checkpoint.
+    /// The rows of `path` up to `iteration`, to continue after a checkpoint. A file that is
+    /// gone (deleted) does not stop the run: its curves go on from `iteration`.
     pub fn resume(path: PathBuf, iteration: usize) -> Result<Self> {
-        let rows: Vec<CurveRow> = if path.exists() {
-            read(&path)?
-                .into_iter()
-                .filter(|r| r.iteration < iteration)
-                .collect()
-        } else {
-            Vec::new()
-        };
+        if path.symlink_metadata().is_err() {
+            return Ok(Self {
+                path,
+                rows: Vec::new(),
+            });
+        }
+        let rows: Vec<CurveRow> = read(&path)?
+            .into_iter()
+            .filter(|r| r.iteration < iteration)
+            .collect();
         // Every finished iteration wrote rows: none means the file is not this run's.
         if iteration > 0 && rows.is_empty() {
             return Err(Error::invalid(
@@ -86,6 +89,22 @@ impl Curves {
 
     pub fn push(&mut self, row: CurveRow) -> Result<()> {
         self.rows.push(row);
+        self.write()
+    }
+
+    /// Drops the rows from `iteration` on (those of iterations no checkpoint holds, after a
+    /// checkpoint failed to be written), so the file again matches the run's newest
+    /// checkpoint.
+    pub fn truncate(&mut self, iteration: usize) -> Result<()> {
+        self.rows.retain(|r| r.iteration < iteration);
+        self.write()
+    }
+
+    fn write(&self) -> Result<()> {
+        if self.rows.is_empty() {
+            let header = format!("{}\n", columns().join(","));
+            return atomic_write(&self.path, header.as_bytes());
+        }
         let mut writer = csv::Writer::from_writer(Vec::new());
         for r in &self.rows {
             writer.serialize(r).map_err(|e| {
@@ -105,7 +124,8 @@ impl Curves {
 
 /// Reads a curves file; errors name the line.
 pub fn read(path: &Path) -> Result<Vec<CurveRow>> {
-    let mut reader = csv::Reader::from_path(path).map_err(|e| csv_error(path, e))?;
+    let text = crate::io::read_bytes(path, crate::io::Format::Curves)?;
+    let mut reader = csv::Reader::from_reader(text.as_slice());
     // The header is the columns `push` writes, so a foreign file is refused even without rows.
     let header = reader.headers().map_err(|e| csv_error(path, e))?.clone();
     let expected = columns();
@@ -187,5 +207,29 @@ mod tests {
         let foreign = dir.path().join("foreign.csv");
         std::fs::write(&foreign, format!("{}\n", columns.join(","))).unwrap();
         assert!(read(&foreign).is_err());
+    }
+
+    /// Rows dropped past a failed checkpoint are gone from the file too; a file deleted by
+    /// the user does not stop a resume.
+    #[test]
+    fn truncation_rewrites_the_file_and_a_deleted_file_resumes_empty() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let path = dir.path().join("curves.csv");
+        let mut curves = Curves::new(path.clone());
+        for iteration in 0..3 {
+            curves
+                .push(CurveRow {
+                    iteration,
+                    ..CurveRow::default()
+                })
+                .expect("push");
+        }
+        curves.truncate(1).expect("truncate");
+        assert_eq!(read(&path).expect("read").len(), 1);
+        curves.truncate(0).expect("truncate");
+        assert!(read(&path).expect("a header alone reads").is_empty());
+        std::fs::remove_file(&path).expect("remove");
+        let resumed = Curves::resume(path, 2).expect("gone, the run goes on");
+        assert!(resumed.rows().is_empty());
     }
 }

@@ -446,7 +446,22 @@ impl<'d> Trainer<'d> {
         }
     }
 
-    fn save(&self) -> Result<PathBuf> {
+    /// Writes a checkpoint of the run as it stands. If that fails (a full disk), the curve
+    /// rows of the iterations it would have held are dropped again, so `curves.csv` matches
+    /// the newest checkpoint there is.
+    fn save(&mut self) -> Result<PathBuf> {
+        self.write_checkpoint().inspect_err(|_| {
+            let saved = checkpoint::latest(&self.run_dir)
+                .ok()
+                .flatten()
+                .and_then(|dir| checkpoint::read_state(&dir).ok())
+                .map_or(0, |state| state.iteration);
+            // Best effort: the checkpoint's error is the one to report.
+            let _ = self.curves.truncate(saved);
+        })
+    }
+
+    fn write_checkpoint(&self) -> Result<PathBuf> {
         checkpoint::save(
             &self.run_dir,
             self.config
