@@ -471,6 +471,12 @@ fn sim2real_writes_the_documented_report_dynamics_and_plots_as_one_set() {
     );
     assert!(v["final"]["heldout_pos_rmse_m"].as_f64().expect("final") > 0.0);
     assert!(v["mismatch"]["regimes"].as_array().expect("regimes").len() == 5);
+    // The report names the contents it fitted, not only the path.
+    let fitted = std::fs::read(&csv).expect("recordings");
+    assert_eq!(
+        v["source_sha256"].as_str(),
+        Some(rtr::data::automatum::sha256_hex(&fitted).as_str())
+    );
     let findings = v["findings"].as_array().expect("findings");
     assert_eq!(findings[0]["effect"], "accel_lag", "{v}");
     for key in ["params", "heldout_pos_rmse_m", "improvement_pct"] {
@@ -1198,5 +1204,69 @@ fn a_probe_into_an_earlier_probe_run_is_refused_by_its_out_folder() {
             && err.contains("probe run of `brake`")
             && !err.contains("--resume"),
         "{err}"
+    );
+}
+
+/// A checkpoint that cannot be written (a full disk: the file size limit) stops the run with
+/// the error, leaves the newest good checkpoint, and takes the curve rows of the lost
+/// iterations back out: `curves.csv` matches the checkpoint there is.
+#[test]
+fn a_checkpoint_that_cannot_be_written_leaves_curves_that_match_the_last_one() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let run_file = dir.path().join("tiny.toml");
+    std::fs::write(
+        &run_file,
+        "method = \"IL\"\nseed = 3\n[optimizer]\nlearning_rate = 1e-3\nepochs = 3\n\
+         epoch_scenes = 2\n[imitation]\nminibatch = 2\n[data]\nnominal_limit = 4\n\
+         max_rollout_steps = 4\n[model]\nhidden = 16\nlane_layers = 1\ninteraction_rounds = 1\n\
+         history_blocks = 1\nhead_hidden = [16]\n",
+    )
+    .expect("write");
+    let run = dir.path().join("run");
+    let (config, out) = (run_file.to_str().unwrap(), run.to_str().unwrap());
+    let first = rtr(&[
+        "train",
+        "--config",
+        config,
+        "--out",
+        out,
+        "--stop-after",
+        "1",
+    ]);
+    assert!(
+        first.status.success(),
+        "{}",
+        String::from_utf8_lossy(&first.stderr)
+    );
+    let rows_before = std::fs::read_to_string(run.join("curves.csv")).expect("curves");
+    // Files of at most 4 KiB: a curves row fits, a checkpoint's networks do not.
+    let full = Command::new("bash")
+        .arg("-c")
+        .arg(format!(
+            "trap '' XFSZ; ulimit -f 8; exec {} train --config {config} --out {out} --resume \
+             --stop-after 1",
+            env!("CARGO_BIN_EXE_rtr")
+        ))
+        .output()
+        .expect("bash runs");
+    let err = String::from_utf8_lossy(&full.stderr);
+    assert!(
+        !full.status.success() && err.contains("File too large"),
+        "{err}"
+    );
+    assert_eq!(
+        std::fs::read_to_string(run.join("checkpoints/latest")).expect("latest"),
+        "iter-000001"
+    );
+    assert_eq!(
+        std::fs::read_to_string(run.join("curves.csv")).expect("curves"),
+        rows_before,
+        "the rows of the lost iteration are gone again"
+    );
+    let resumed = rtr(&["train", "--config", config, "--out", out, "--resume"]);
+    assert!(
+        resumed.status.success(),
+        "{}",
+        String::from_utf8_lossy(&resumed.stderr)
     );
 }

@@ -290,6 +290,10 @@ pub struct Final {
 #[derive(Debug, Clone, Serialize)]
 pub struct Report {
     pub source: String,
+    /// The sha256 of the recordings file as it was read (none for the A9 or generated
+    /// tracks): the report describes these contents, whatever lies at `source` later.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub source_sha256: Option<String>,
     pub tracks: usize,
     pub training_windows: usize,
     pub heldout_windows: usize,
@@ -366,6 +370,7 @@ impl Report {
         let (refit_wheelbase, _) = estimates(&selection.refit.fit);
         Self {
             source: recordings.source.clone(),
+            source_sha256: None,
             tracks: recordings.tracks.len(),
             training_windows: train.len(),
             heldout_windows: heldout.len(),

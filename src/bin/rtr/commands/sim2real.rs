@@ -73,10 +73,18 @@ pub fn run(args: Sim2RealArgs) -> Result<()> {
     let mut names = vec![REPORT, DYNAMICS];
     names.extend(rtr::sim2real::plots::PLOT_FILES);
     rtr::io::check_result_folder(&args.out, KIND, &names)?;
+    let mut source_sha256 = None;
     let (recordings, commands_inferred) = match &args.recordings {
         Some(path) => {
             rtr::io::check_input_file(path, "--recordings")?;
-            (rtr::data::Recordings::load(path)?, false)
+            // Read once: the digest is of exactly what was fitted, whatever lies at the path
+            // later (another command may replace it).
+            let text = rtr::io::read_text(path, rtr::io::Format::Recordings)?;
+            source_sha256 = Some(rtr::data::automatum::sha256_hex(text.as_bytes()));
+            (
+                rtr::data::Recordings::parse(&path.display().to_string(), &text)?,
+                false,
+            )
         }
         None => (
             a9_recordings(&args.data.load()?, 0.1, args.horizon + 2.0),
@@ -103,9 +111,10 @@ pub fn run(args: Sim2RealArgs) -> Result<()> {
     options.fit.iterations = args.iterations;
     let progress = indicatif::ProgressBar::new_spinner();
     progress.enable_steady_tick(std::time::Duration::from_millis(200));
-    let outcome = identify(&recordings, &options, &|stage: &str| {
+    let mut outcome = identify(&recordings, &options, &|stage: &str| {
         progress.set_message(stage.to_string())
     })?;
+    outcome.report.source_sha256 = source_sha256;
     progress.finish_and_clear();
     let report = &outcome.report;
     for line in report.summary() {
