@@ -59,14 +59,25 @@ pub(crate) fn remove_stale_temporaries(folder: &Path) {
     }
 }
 
-/// Whether a process with id `pid` runs (a signal 0 reaches it, or it exists but is not ours).
+/// Whether a process with id `pid` runs (a signal 0 reaches it, or it exists but is not ours),
+/// a killed one that its parent has not yet reaped (a zombie) excepted.
 fn process_runs(pid: u32) -> bool {
     let Ok(pid) = libc::pid_t::try_from(pid) else {
         return false;
     };
     // SAFETY: signal 0 only checks that the process exists and may be signalled.
     let result = unsafe { libc::kill(pid, 0) };
-    result == 0 || std::io::Error::last_os_error().raw_os_error() != Some(libc::ESRCH)
+    let exists = result == 0 || std::io::Error::last_os_error().raw_os_error() != Some(libc::ESRCH);
+    exists && !is_zombie(pid)
+}
+
+/// Whether `pid` has ended and waits to be reaped (Linux: state `Z` in `/proc/PID/stat`,
+/// after the command name in parentheses; elsewhere never known, so never).
+fn is_zombie(pid: libc::pid_t) -> bool {
+    std::fs::read_to_string(format!("/proc/{pid}/stat")).is_ok_and(|stat| {
+        stat.rsplit_once(") ")
+            .is_some_and(|(_, rest)| rest.starts_with('Z'))
+    })
 }
 
 /// The folder `path` lives in (`.` for a bare file name).
@@ -354,6 +365,28 @@ pub(super) fn check_output(path: &Path, kind: OutputKind, flag: &str) -> Result<
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A killed writer's temporaries go at the next write beside them, also while its parent
+    /// has not reaped it yet.
+    #[test]
+    fn a_writer_that_ended_is_not_running_even_unreaped() {
+        let mut child = std::process::Command::new("true").spawn().expect("spawn");
+        let pid = child.id();
+        let waited = std::time::Instant::now();
+        while process_runs(pid) && waited.elapsed() < std::time::Duration::from_secs(5) {
+            std::thread::sleep(std::time::Duration::from_millis(10));
+        }
+        assert!(!process_runs(pid), "ended, not yet reaped");
+        let dir = tempfile::tempdir().expect("temp dir");
+        let leftover = dir
+            .path()
+            .join(format!("{TEMPORARY_PREFIX}checkpoint-{pid}-3"));
+        std::fs::create_dir(&leftover).expect("mkdir");
+        remove_stale_temporaries(dir.path());
+        assert!(!leftover.exists());
+        child.wait().expect("reaped");
+        assert!(process_runs(std::process::id()));
+    }
 
     #[test]
     fn a_set_of_files_is_written_whole_or_not_at_all() {
