@@ -53,7 +53,7 @@ fn with_path(error: Error, path: &str) -> Error {
         None => message,
     };
     // serde_json says this of a fixed-length array given more elements than it holds.
-    let message = if message == "trailing characters" {
+    let message = if message.starts_with("text after the end") {
         "more elements than this array holds".to_string()
     } else {
         message
@@ -79,9 +79,18 @@ pub fn json_error(source: &str, text: Option<&str>, e: &serde_json::Error) -> Er
     }
     // A field missing, unknown or repeated is the object's fault, and the message names the
     // field; the key before the position belongs to a value read without fault.
-    let about_a_field = ["missing field", "unknown field", "duplicate field"]
-        .iter()
-        .any(|p| message.starts_with(p));
+    // Text after the document is no value's fault either.
+    if message == "trailing characters" {
+        message = "text after the end of the JSON value (trailing characters)".to_string();
+    }
+    let about_a_field = [
+        "missing field",
+        "unknown field",
+        "duplicate field",
+        "text after the end",
+    ]
+    .iter()
+    .any(|p| message.starts_with(p));
     if !about_a_field && let Some(key) = text.and_then(|t| key_before(t, e.line(), e.column())) {
         message = format!("`{key}`: {message}");
     }

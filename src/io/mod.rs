@@ -165,10 +165,22 @@ fn table_kind_hint<T: serde::de::DeserializeOwned>(
 }
 
 /// serde's names for Rust number types, in words: shared by the TOML and JSON messages.
-const NUMBER_WORDS: [(&str, &str); 8] = [
-    ("expected usize", "expected a whole number >= 0"),
-    ("expected u64", "expected a whole number >= 0"),
-    ("expected u32", "expected a whole number >= 0"),
+const NUMBER_WORDS: [(&str, &str); 10] = [
+    // serde_json and toml read a number too large for 64 bits as a 128-bit one.
+    (" as i128", ""),
+    (" as u128", ""),
+    (
+        "expected usize",
+        "expected a whole number from 0 to 18446744073709551615",
+    ),
+    (
+        "expected u64",
+        "expected a whole number from 0 to 18446744073709551615",
+    ),
+    (
+        "expected u32",
+        "expected a whole number from 0 to 4294967295",
+    ),
     ("expected u8", "expected a whole number from 0 to 255"),
     ("expected i64", "expected a whole number"),
     ("expected i32", "expected a whole number"),
@@ -177,7 +189,7 @@ const NUMBER_WORDS: [(&str, &str); 8] = [
 ];
 
 /// `message` with serde's "invalid type" and number type names in words.
-fn number_words(message: &str) -> String {
+pub fn number_words(message: &str) -> String {
     let text = message.replacen("invalid type: ", "found ", 1);
     NUMBER_WORDS
         .iter()
@@ -241,6 +253,8 @@ mod tests {
     #[serde(deny_unknown_fields)]
     #[allow(dead_code)]
     struct File {
+        #[serde(default)]
+        seed: u64,
         #[serde(default)]
         run: Option<Run>,
         #[serde(default)]
@@ -315,7 +329,12 @@ mod tests {
         let cases = [
             (
                 "[run]\ncheckpoint_every = \"x\"\n",
-                "expected a whole number >= 0",
+                "expected a whole number from 0 to 18446744073709551615",
+            ),
+            // Too large for 64 bits: the limit, not the 128-bit type it was read as.
+            (
+                "seed = 18446744073709551616\n",
+                "found integer `18446744073709551616`, expected a whole number from 0 to",
             ),
             (
                 "[[clips]]\npath = \"a\"\nweight = \"x\"\n",
@@ -328,7 +347,7 @@ mod tests {
             let err = parse_toml::<File>(text, "run.toml").expect_err(text);
             let message = err.to_string();
             assert!(message.contains(words), "{text:?}: {message}");
-            for rust in ["usize", "f64", "sequence", "struct "] {
+            for rust in ["usize", "f64", "i128", "sequence", "struct "] {
                 assert!(!message.contains(rust), "{text:?}: {message}");
             }
         }

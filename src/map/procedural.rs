@@ -168,7 +168,7 @@ fn positive(name: &str, v: f64) -> Result<()> {
         Ok(())
     } else {
         Err(bad(format!(
-            "procedural map: {name} is {v}, expected a positive number"
+            "procedural map: {name} is {v:?}, expected a positive number"
         )))
     }
 }
@@ -181,13 +181,13 @@ fn check_common(lanes: usize, min_lanes: usize, lane_width: f64, length: f64) ->
     }
     if !(MIN_LANE_WIDTH..=10.0).contains(&lane_width) {
         return Err(bad(format!(
-            "procedural map: lane_width is {lane_width} m, expected a driving lane \
+            "procedural map: lane_width is {lane_width:?} m, expected a driving lane \
              {MIN_LANE_WIDTH}-10 m wide"
         )));
     }
     if !(MIN_LENGTH..=crate::map::MAX_ROAD_LENGTH).contains(&length) {
         return Err(bad(format!(
-            "procedural map: length is {length} m, expected {MIN_LENGTH} to {} m",
+            "procedural map: length is {length:?} m, expected {MIN_LENGTH} to {} m",
             crate::map::MAX_ROAD_LENGTH
         )));
     }
@@ -210,7 +210,7 @@ fn check_fits(length: f64, parts: &[(&str, f64)]) -> Result<()> {
         // A lane that appears, ends or runs alongside over a few centimetres is no lane.
         if (name.contains("taper") || name.contains("lane_length")) && *v < MIN_TRANSITION {
             return Err(bad(format!(
-                "procedural map: {name} is {v} m, expected at least {MIN_TRANSITION} m"
+                "procedural map: {name} is {v:?} m, expected at least {MIN_TRANSITION} m"
             )));
         }
     }
@@ -218,7 +218,7 @@ fn check_fits(length: f64, parts: &[(&str, f64)]) -> Result<()> {
     if total >= length {
         let names: Vec<&str> = parts.iter().map(|p| p.0).collect();
         return Err(bad(format!(
-            "procedural map: {} add up to {total} m, expected less than length {length} m",
+            "procedural map: {} add up to {total:?} m, expected less than length {length:?} m",
             names.join(" + ")
         )));
     }
@@ -356,7 +356,7 @@ impl ProceduralMap {
                 )?;
                 if diverge_s + JUNCTION_LENGTH >= length {
                     return Err(bad(format!(
-                        "procedural map: diverge_s {diverge_s} m leaves no road after the junction, expected \
+                        "procedural map: diverge_s {diverge_s:?} m leaves no road after the junction, expected \
                          less than length - {JUNCTION_LENGTH} m"
                     )));
                 }
@@ -405,7 +405,7 @@ fn curve_map(
     let width = check_layout(layout, lanes, lane_width)?;
     if !curvature.is_finite() || curvature.abs() * width >= 0.5 {
         return Err(bad(format!(
-            "procedural map: curvature {curvature} 1/m is too tight for a {width} m wide road \
+            "procedural map: curvature {curvature:?} 1/m is too tight for a {width:?} m wide road \
                  (expected |curvature| * width < 0.5)"
         )));
     }
@@ -413,7 +413,7 @@ fn curve_map(
     let turn = 0.45 * length * curvature.abs();
     if turn > std::f64::consts::PI {
         return Err(bad(format!(
-            "procedural map: curvature {curvature} 1/m over {length} m turns the road by \
+            "procedural map: curvature {curvature:?} 1/m over {length:?} m turns the road by \
                  {turn:.2} rad, so it would cross itself; expected at most pi"
         )));
     }
@@ -449,7 +449,7 @@ fn check_layout(layout: Layout, lanes: usize, lane_width: f64) -> Result<f64> {
             positive("median_width", median_width)?;
             if median_width > MAX_MEDIAN {
                 return Err(bad(format!(
-                    "procedural map: median_width is {median_width} m, expected at most {MAX_MEDIAN} m"
+                    "procedural map: median_width is {median_width:?} m, expected at most {MAX_MEDIAN} m"
                 )));
             }
             Ok(2.0 * side + median_width)

@@ -107,7 +107,7 @@ impl MapSource {
             Error::invalid(
                 "--procedural",
                 mistyped_field(&value).map_or("JSON".into(), |f| format!("field `{f}`")),
-                e.to_string(),
+                rtr::io::number_words(&e.to_string()),
             )
         })
     }
