@@ -316,6 +316,23 @@ fn bench_sim_prints_its_figures_and_names_missing_backends() {
             String::from_utf8_lossy(&out.stderr)
         );
     }
+    // Sizes given as flags are refused as the flags, not as run-file fields.
+    let out = rtr(&[
+        "bench",
+        "train",
+        "--small",
+        "--ppo-batch",
+        "8",
+        "--ppo-minibatch",
+        "16",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success()
+            && err.contains("--ppo-minibatch: expected a divisor of --ppo-batch (8)")
+            && !err.contains("field"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -388,6 +405,37 @@ fn model_info_counts_parameters_and_rejects_bad_configs() {
     let err = String::from_utf8_lossy(&bad.stderr);
     assert!(
         !bad.status.success() && err.contains("line 3") && err.contains("hidden"),
+        "{err}"
+    );
+    // A value out of range is found at its line too, in a run file or a model config.
+    for (text, line) in [
+        ("method = \"IL\"\n[model]\nhidden = 0\n", "line 3"),
+        ("hidden = 100000\n", "line 1"),
+    ] {
+        std::fs::write(&path, text).expect("write");
+        let bad = rtr(&["model", "info", "--config", path.to_str().expect("utf-8")]);
+        let err = String::from_utf8_lossy(&bad.stderr);
+        assert!(
+            !bad.status.success() && err.contains(line) && err.contains("hidden"),
+            "{err}"
+        );
+    }
+    // A `[model]` table copied out of a run file is read as the model; a typo in it is named.
+    std::fs::write(&path, "[model]\nhidden = 8\n").expect("write");
+    let table = rtr(&[
+        "model",
+        "info",
+        "--config",
+        path.to_str().expect("utf-8"),
+        "--json",
+    ]);
+    let report: serde_json::Value = serde_json::from_slice(&table.stdout).expect("JSON");
+    assert_eq!(report["config"]["hidden"], 8);
+    std::fs::write(&path, "[model]\nhiden = 8\n").expect("write");
+    let bad = rtr(&["model", "info", "--config", path.to_str().expect("utf-8")]);
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(
+        err.contains("line 2") && err.contains("unknown field `hiden`"),
         "{err}"
     );
 }

@@ -181,8 +181,22 @@ impl ModelConfig {
     /// Parses TOML text; `source_name` names it in errors.
     pub fn from_toml_str(text: &str, source_name: &str) -> Result<Self> {
         let config: Self = parse_toml(text, source_name)?;
-        config.validate(source_name)?;
+        config.validate_text(text, source_name, "")?;
         Ok(config)
+    }
+
+    /// [`Self::validate`] of a config read from the settings file `text`, its fields under
+    /// `table` (`"model."` in a run file): a refused value is reported at its line.
+    pub fn validate_text(&self, text: &str, source_name: &str, table: &str) -> Result<()> {
+        match self.size_problem().or_else(|| self.scale_problem()) {
+            Some((field, message)) => Err(crate::io::field_error(
+                text,
+                source_name,
+                &format!("{table}{field}"),
+                &message,
+            )),
+            None => Ok(()),
+        }
     }
 
     /// Checks every size and range; `source_name` names the config in errors.

@@ -692,7 +692,7 @@ impl TrainConfig {
         config.checks().map_err(|(field, message)| {
             crate::io::field_error(text, source_name, field, &message)
         })?;
-        config.model.validate(source_name)?;
+        config.model.validate_text(text, source_name, "model.")?;
         Ok(config)
     }
 

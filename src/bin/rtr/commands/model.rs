@@ -97,14 +97,28 @@ fn average(checkpoints: &[PathBuf], out: &std::path::Path) -> Result<()> {
 }
 
 /// The model a settings file describes: a run file (it names a `method`) by its `[model]`
-/// table, checked as the whole run file; otherwise the file is a model config.
+/// table, checked as the whole run file; a file holding only a `[model]` table (copied out of
+/// a run file) by that table; otherwise the file is a model config.
 fn model_of(path: &std::path::Path) -> Result<ModelConfig> {
+    /// A `[model]` table alone.
+    #[derive(serde::Deserialize)]
+    #[serde(deny_unknown_fields)]
+    struct ModelTable {
+        model: ModelConfig,
+    }
     let text = rtr::io::read_text(path, rtr::io::Format::Settings)?;
-    let is_run_file =
-        toml::from_str::<toml::Table>(&text).is_ok_and(|table| table.contains_key("method"));
+    let table = toml::from_str::<toml::Table>(&text).ok();
+    let has = |key: &str| table.as_ref().is_some_and(|t| t.contains_key(key));
     let name = path.display().to_string();
-    if is_run_file {
+    if has("method") {
         Ok(rtr::train::TrainConfig::from_toml_str(&text, &name)?.model)
+    } else if table
+        .as_ref()
+        .is_some_and(|t| t.get("model").is_some_and(toml::Value::is_table))
+    {
+        let model = rtr::io::parse_toml::<ModelTable>(&text, &name)?.model;
+        model.validate_text(&text, &name, "model.")?;
+        Ok(model)
     } else {
         ModelConfig::from_toml_str(&text, &name)
     }

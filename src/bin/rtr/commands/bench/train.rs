@@ -10,13 +10,13 @@ use std::time::Instant;
 use indicatif::ProgressBar;
 use serde::Serialize;
 
-use rtr::Result;
 use rtr::backend::Backend;
 use rtr::data::A9Dataset;
 use rtr::model::ModelConfig;
 use rtr::train::session::{devices, training_data};
 use rtr::train::{IterationTiming, Method, PpoConfig, TrainConfig, Trainer};
 use rtr::usage::{CoreMeter, peak_rss_mb, reset_peak_rss};
+use rtr::{Error, Result};
 
 #[derive(Debug, Clone, Serialize)]
 pub struct TrainBenchReport {
@@ -82,8 +82,31 @@ fn bench_config(
     config.ppo.batch = ppo_batch;
     config.ppo.minibatch = ppo_minibatch;
     config.run.devices = Some(device_count);
-    config.validate("bench")?;
+    config.validate("bench").map_err(in_flag_words)?;
     Ok(config)
+}
+
+/// The run-config fields `bench train` sets from its flags, by flag.
+const FLAG_FIELDS: [(&str, &str); 4] = [
+    ("imitation.minibatch", "--il-minibatch"),
+    ("ppo.minibatch", "--ppo-minibatch"),
+    ("ppo.batch", "--ppo-batch"),
+    ("run.devices", "--devices"),
+];
+
+/// `e`, a refusal of the config built from the flags, naming the flags the user gave rather
+/// than run-file fields they never wrote (`ppo.minibatch` is `--ppo-minibatch` here).
+fn in_flag_words(e: Error) -> Error {
+    let mut text = e.to_string();
+    if !FLAG_FIELDS.iter().any(|(field, _)| text.contains(field)) {
+        return e;
+    }
+    for (field, flag) in FLAG_FIELDS {
+        text = text
+            .replace(&format!("field `{field}`"), flag)
+            .replace(field, flag);
+    }
+    Error::InvalidArgument(text.replacen("bench: ", "bench train: ", 1))
 }
 
 /// Refuses what `bench_training` would refuse about its settings (a backend not built in,
