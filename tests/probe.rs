@@ -219,6 +219,37 @@ fn an_unknown_probe_task_is_refused_by_name() {
     assert!(err.contains("--tasks") && err.contains("swim"), "{err}");
 }
 
+/// What the probes cannot do is refused before any data is loaded: a run file of another
+/// method, and an `--out` that `credit` alone would leave empty.
+#[test]
+fn a_probe_that_cannot_run_is_refused_before_the_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let run_file = dir.path().join("il.toml");
+    std::fs::write(&run_file, "method = \"IL\"\n").unwrap();
+    let out_dir = dir.path().join("out");
+    for (args, expected) in [
+        (
+            vec!["--config", run_file.to_str().unwrap(), "--tasks", "brake"],
+            "method must be RL, not IL",
+        ),
+        (
+            vec!["--tasks", "credit", "--out", out_dir.to_str().unwrap()],
+            "--out would stay empty",
+        ),
+    ] {
+        // The data folder does not exist: a refusal that names the settings came first.
+        let out = Command::new(env!("CARGO_BIN_EXE_rtr"))
+            .args(["probe", "ppo"])
+            .args(&args)
+            .args(["--data", "/nonexistent"])
+            .output()
+            .expect("rtr runs");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains(expected), "{err}");
+    }
+    assert!(!out_dir.exists());
+}
+
 /// `--warm-start` is read with `--config` too (it replaces the run file's `[init] policy`): a
 /// warm start that is not a model is refused by that flag's name, not silently ignored.
 #[test]

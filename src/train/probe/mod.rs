@@ -162,19 +162,7 @@ pub fn run_probes(
     dataset: &A9Dataset,
     progress: &dyn Fn(&str),
 ) -> Result<Vec<TaskReport>> {
-    // A probe always trains afresh (it has no --resume): an earlier probe's run in a task's
-    // folder is refused before any work, by the flag the user can change.
-    for &task in tasks {
-        let (dir, _) = run_dir(task, settings);
-        if super::checkpoint::has_checkpoint(&dir) {
-            return Err(Error::InvalidArgument(format!(
-                "--out: {} already holds a probe run of `{}`; probes always start afresh, so \
-                 choose another --out folder or remove that one",
-                dir.display(),
-                task.name()
-            )));
-        }
-    }
+    check_settings(tasks, settings)?;
     let stats = TrafficStatistics::from_recording(&dataset.recording, &dataset.map, 1.0);
     tasks
         .iter()
@@ -192,6 +180,35 @@ pub fn run_probes(
             }
         })
         .collect()
+}
+
+/// Refuses, before any data is loaded or scenario drawn, what [`run_probes`] would refuse
+/// about its settings: a run file of another method than RL, an `--out` that would stay empty
+/// (`credit` alone trains nothing), an earlier probe's run in a task's folder.
+pub fn check_settings(tasks: &[ProbeTask], settings: &ProbeSettings) -> Result<()> {
+    probe_config(settings)?;
+    if settings.out.is_some() && tasks.iter().all(|&t| t == ProbeTask::Credit) {
+        return Err(Error::InvalidArgument(
+            "--out: `credit` measures PPO's gradient without training, so it writes no run \
+             folder and --out would stay empty; drop --out, or add a trained task (brake, \
+             recover)"
+                .into(),
+        ));
+    }
+    // A probe always trains afresh (it has no --resume): an earlier probe's run in a task's
+    // folder is refused before any work, by the flag the user can change.
+    for &task in tasks {
+        let (dir, _) = run_dir(task, settings);
+        if super::checkpoint::has_checkpoint(&dir) {
+            return Err(Error::InvalidArgument(format!(
+                "--out: {} already holds a probe run of `{}`; probes always start afresh, so \
+                 choose another --out folder or remove that one",
+                dir.display(),
+                task.name()
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// The run folder of `task` and whether it is temporary.

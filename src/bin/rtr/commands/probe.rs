@@ -92,6 +92,7 @@ pub fn run(command: ProbeCommand) -> Result<()> {
         scenario_seed: args.scenario_seed,
         out: args.out.clone(),
     };
+    rtr::train::probe::check_settings(&tasks, &settings)?;
     let dataset = args.data.load()?;
     let reports = run_probes(&tasks, &settings, &dataset, &|line| rtr::errln!("{line}"))
         .map_err(|e| warm_start_named(e, &args))?;
