@@ -470,6 +470,35 @@ fn train_names_the_bad_run_file_and_the_missing_reference() {
         !out.status.success() && err.contains("nowhere/il.bpk"),
         "{err}"
     );
+    // A file the run would refuse for its size is refused by its field before any data loads
+    // (the data folder does not exist).
+    let huge = dir.path().join("huge.txt");
+    std::fs::File::create(&huge)
+        .and_then(|f| f.set_len(65 * 1024 * 1024))
+        .expect("a sparse file");
+    let run_file = dir.path().join("curated.toml");
+    std::fs::write(
+        &run_file,
+        format!(
+            "method = \"IL\"\n[data]\ncurated = {:?}\n",
+            huge.to_str().unwrap()
+        ),
+    )
+    .expect("write");
+    let out = rtr(&[
+        "train",
+        "--config",
+        run_file.to_str().unwrap(),
+        "--data",
+        "/nonexistent",
+        "--out",
+        dir.path().join("run").to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("field `data.curated`") && err.contains("64 MiB"),
+        "{err}"
+    );
 }
 
 #[test]

@@ -226,6 +226,17 @@ fn named(path: &Path) -> String {
     }
 }
 
+/// Refuses the file `path` if it is larger than `format` allows (as [`read_bytes`] would),
+/// before anything else is read: a command checks the files it will read at its start.
+pub fn check_size(path: &Path, format: Format) -> Result<()> {
+    match std::fs::metadata(path) {
+        Ok(meta) if meta.is_file() && meta.len() > format.limit() => {
+            Err(read_error(path, too_large(format)))
+        }
+        _ => Ok(()),
+    }
+}
+
 /// The whole of the regular file `path`, refused if larger than `format` allows.
 pub fn read_bytes(path: &Path, format: Format) -> Result<Vec<u8>> {
     let file = open_regular(path)?;

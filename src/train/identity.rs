@@ -96,8 +96,8 @@ fn reference_is_warm_start(config: &TrainConfig) -> bool {
     config.method.uses_reference() && config.reference.as_ref().is_some_and(|r| r.init)
 }
 
-/// The read cap of a field's files.
-fn format_of(field: &str) -> Format {
+/// The read cap of the files a run file's path `field` names.
+pub fn format_of(field: &str) -> Format {
     match field {
         "dynamics" => Format::Settings,
         "data.curated" => Format::SceneList,

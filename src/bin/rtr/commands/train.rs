@@ -181,7 +181,9 @@ fn check_named_inputs(config: &rtr::train::TrainConfig, resume: bool) -> Result<
             ("init.policy", Some(init)) => init.policy_file(),
             _ => path,
         };
-        rtr::io::check_input_path(&path, "path").map_err(|e| e.in_field(field))?;
+        rtr::io::check_input_path(&path, field).map_err(|e| e.in_field(field))?;
+        rtr::io::check_size(&path, rtr::train::identity::format_of(field))
+            .map_err(|e| e.in_field(field))?;
     }
     Ok(())
 }
@@ -198,5 +200,6 @@ fn remove_unfinished_run(out: &Path, created: bool) {
         for name in ["config.toml", "curves.csv"] {
             let _ = rtr::io::remove_file(&out.join(name));
         }
+        let _ = rtr::io::remove_folder(&out.join(rtr::train::kept_inputs::KEPT_FOLDER));
     }
 }
