@@ -331,6 +331,28 @@ fn non_increasing_time_is_rejected() {
         &message,
         &["line 4", "`t`", "0.1", "line 3", "strictly increasing"],
     );
+    assert_contains(&message, &["repeats the time of the row before"]);
+    let message = error(&with_row("a,0.05,0,0,0,1,0,0"));
+    assert_contains(&message, &["time 0.05", "does not increase after 0.1"]);
+    // A time far past any clock (milliseconds since 1970 read as seconds) is named as such.
+    let message = error(&with_row("a,1.7e12,0,0,0,1,0,0"));
+    assert_contains(&message, &["line 4", "time 1.7e12 s is implausible"]);
+}
+
+/// Times are shown as written, not with the float's rounding digits.
+#[test]
+fn times_in_messages_are_shown_without_rounding_digits() {
+    let rows: String = (0..6)
+        .map(|k| {
+            format!(
+                "a,{},0,0,0,1,0,0\n",
+                100.0 + 0.1 * f64::from(k) + if k == 5 { 0.5 } else { 0.0 }
+            )
+        })
+        .collect();
+    let message = error(&format!("{HEADER}\n{rows}"));
+    assert_contains(&message, &["median step) is 0.1 s", "a step of 0.6 s"]);
+    assert!(!message.contains("0000000"), "{message}");
 }
 
 #[test]

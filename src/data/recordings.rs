@@ -64,6 +64,9 @@ const MIN_PERIOD: f64 = 1e-3;
 const MAX_PERIOD: f64 = 1.0;
 /// Largest accepted |x|, |y| (m): any local metric frame, UTM included.
 const MAX_COORDINATE: f64 = 1e7;
+/// Largest plausible timestamp (s): Unix time in seconds is about 1.8e9. Beyond, a 1 kHz
+/// log's steps are lost to the rounding of the numbers.
+const MAX_TIME: f64 = 1e10;
 /// A step's travelled distance may exceed what its recorded speeds allow by this factor plus
 /// [`JUMP_SLACK`] (position noise) before the row is called a jump (a teleport, a glitch).
 pub(crate) const JUMP_FACTOR: f64 = 2.0;
@@ -331,6 +334,16 @@ fn expected_header() -> String {
     REQUIRED.join(",")
 }
 
+/// A time in seconds as a message shows it: to the microsecond, without the float's rounding
+/// digits (`0.10000000000000142` is `0.1`); very small or large ones in exponent form.
+fn seconds(v: f64) -> String {
+    if v != 0.0 && !(1e-6..1e12).contains(&v.abs()) {
+        return format!("{v:e}");
+    }
+    let text = format!("{v:.6}");
+    text.trim_end_matches('0').trim_end_matches('.').to_string()
+}
+
 /// Quotes a CSV field when it needs it (separator, quote, line break, surrounding spaces).
 fn quote(field: &str) -> String {
     let needs = field.contains([',', '"', '\n', '\r']) || field.trim() != field;
@@ -540,6 +553,10 @@ fn number(source: &str, line: usize, index: usize, name: &str, text: &str) -> Re
 /// Rejects values whose magnitude suggests a unit mistake.
 fn check_range(source: &str, line: usize, name: &str, v: f64) -> Result<()> {
     let problem = match name {
+        "t" if v.abs() > MAX_TIME => Some(format!(
+            "time {v:e} s is implausible; expected seconds with |t| <= {MAX_TIME:e} (Unix time \
+             in seconds is about 1.8e9; in milliseconds or nanoseconds it is not)"
+        )),
         "x" | "y" if v.abs() > MAX_COORDINATE => Some(format!(
             "position {v:e} m is implausible; expected metres in a local frame with |{name}| <= \
              {MAX_COORDINATE}"
@@ -615,9 +632,15 @@ impl TrackBuilder {
                 source,
                 format!("line {line}, column `t`"),
                 format!(
-                    "time {t} of track `{}` does not increase after {prev} (line {prev_line}); \
-                     expected strictly increasing times within a track",
-                    tr.id
+                    "time {} of track `{}` {} (line {prev_line}); expected strictly increasing \
+                     times within a track",
+                    seconds(t),
+                    tr.id,
+                    if t == prev {
+                        "repeats the time of the row before".to_string()
+                    } else {
+                        format!("does not increase after {}", seconds(prev))
+                    }
                 ),
             ));
         }
@@ -731,8 +754,9 @@ impl TrackBuilder {
                     track.id, track.first_line
                 ),
                 format!(
-                    "sampling period (median step) is {period}; {hint}expected seconds, \
+                    "sampling period (median step) is {}; {hint}expected seconds, \
                      sampled between {} Hz and {} kHz",
+                    seconds(period),
                     1.0 / MAX_PERIOD,
                     1e-3 / MIN_PERIOD
                 ),
@@ -745,14 +769,16 @@ impl TrackBuilder {
                     source,
                     format!("line {line}, column `t`"),
                     format!(
-                        "track `{}` jumps from t = {} (line {}) to t = {}, a step of {step} s, \
-                         but its sampling period (median step) is {period} s; steps deviating \
+                        "track `{}` jumps from t = {} (line {}) to t = {}, a step of {} s, \
+                         but its sampling period (median step) is {} s; steps deviating \
                          more than {}% are gaps or jitter: expected uniformly sampled \
                          recordings (resample them first)",
                         track.id,
-                        track.t[k],
+                        seconds(track.t[k]),
                         self.lines[k],
-                        track.t[k + 1],
+                        seconds(track.t[k + 1]),
+                        seconds(step),
+                        seconds(period),
                         PERIOD_TOLERANCE * 100.0
                     ),
                 ));

@@ -20,7 +20,11 @@ pub struct SweepArgs {
     #[arg(long)]
     config: PathBuf,
     /// Points LAMBDA:ALPHA, comma-separated; default: the paper's six.
-    #[arg(long, default_value = "0:0,1:0.5,5:0.5,10:0.5,5:0.3,5:0.7")]
+    #[arg(
+        long,
+        default_value = "0:0,1:0.5,5:0.5,10:0.5,5:0.3,5:0.7",
+        allow_hyphen_values = true
+    )]
     points: String,
     /// Folder of the point runs (OUT/lambda<L>_alpha<A>), results.json and table.md.
     #[arg(long, default_value = "runs/sweep")]
