@@ -1177,6 +1177,11 @@ fn model_average_writes_a_loadable_policy_and_refuses_mixed_runs() {
         serde_json::from_slice(&std::fs::read(out.join("averaged.json")).expect("averaged.json"))
             .expect("JSON");
     assert_eq!(sources["sources"].as_array().map(Vec::len), Some(2));
+    // The average records its own weights, so a changed copy is refused where it loads.
+    assert_eq!(
+        sources["policy_sha256"].as_str(),
+        Some(rtr::data::automatum::sha256_hex(&averaged).as_str())
+    );
 
     // Run again, it replaces its own earlier average; a model folder is never replaced.
     let (ok, err) = average(&[il, &second_arg], &out);
@@ -1345,5 +1350,67 @@ fn a_checkpoint_that_cannot_be_written_leaves_curves_that_match_the_last_one() {
         resumed.status.success(),
         "{}",
         String::from_utf8_lossy(&resumed.stderr)
+    );
+}
+
+/// Two trainings of one run file are two runs: their checkpoints share no basin, and their
+/// weight average is refused, naming the two runs.
+#[test]
+fn model_average_refuses_two_trainings_of_one_run_file() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let run_file = dir.path().join("tiny.toml");
+    std::fs::write(
+        &run_file,
+        "method = \"IL\"\nseed = 3\n[optimizer]\nlearning_rate = 1e-3\nepochs = 2\n\
+         epoch_scenes = 2\n[imitation]\nminibatch = 2\n[data]\nnominal_limit = 4\n\
+         max_rollout_steps = 4\n[model]\nhidden = 16\nlane_layers = 1\ninteraction_rounds = 1\n\
+         history_blocks = 1\nhead_hidden = [16]\n[run]\nkeep_checkpoints = 2\n",
+    )
+    .expect("write");
+    let config = run_file.to_str().unwrap();
+    let runs = ["a", "b"].map(|name| dir.path().join(name));
+    for run in &runs {
+        let out = rtr(&["train", "--config", config, "--out", run.to_str().unwrap()]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    let checkpoint = |run: &std::path::Path, k: usize| {
+        run.join(format!("checkpoints/iter-{k:06}"))
+            .to_str()
+            .unwrap()
+            .to_string()
+    };
+    let (a1, a2, b2) = (
+        checkpoint(&runs[0], 1),
+        checkpoint(&runs[0], 2),
+        checkpoint(&runs[1], 2),
+    );
+    let mean = dir.path().join("mean");
+    let average = |x: &str, y: &str| {
+        rtr(&[
+            "model",
+            "average",
+            "--checkpoint",
+            x,
+            "--checkpoint",
+            y,
+            "--out",
+            mean.to_str().unwrap(),
+        ])
+    };
+    let out = average(&a1, &b2);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("two trainings of it"),
+        "{err}"
+    );
+    let out = average(&a1, &a2);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
     );
 }

@@ -150,6 +150,13 @@ fn differing_run_fields(a: &TrainedPolicy, b: &TrainedPolicy) -> Result<Vec<Stri
     if contents(a)? != contents(b)? {
         differing.push("dynamics".into());
     }
+    if let (Some(x), Some(y)) = (&a.run_id, &b.run_id)
+        && x != y
+    {
+        differing.push(format!(
+            "nothing, but they are two trainings of it: run ids {x} and {y}"
+        ));
+    }
     Ok(differing)
 }
 

@@ -25,6 +25,8 @@ pub struct TrainedPolicy {
     pub network: PolicyNetwork,
     /// The simulator it was trained in (its action limits and physics terms).
     pub dynamics: Dynamics,
+    /// The training it came from ([`LoopState::run_id`]), where its run recorded one.
+    pub run_id: Option<String>,
 }
 
 /// The policy file and the run config for `path` (a run folder, a checkpoint folder inside
@@ -131,6 +133,7 @@ impl TrainedPolicy {
             config,
             network,
             dynamics,
+            run_id: recorded.and_then(|(_, state)| state.run_id),
         })
     }
 }

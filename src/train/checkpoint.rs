@@ -52,6 +52,20 @@ pub struct LoopState {
     /// can refuse an input whose contents changed (empty in checkpoints written before).
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub input_digests: BTreeMap<String, String>,
+    /// Which training this is: drawn when the run starts and kept through its resumes, so two
+    /// runs of one run file are told apart (their weights share no basin, and a weight
+    /// average must not mix them). Absent in checkpoints written before it was kept.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub run_id: Option<String>,
+}
+
+/// A new run's id: the digest of the moment, the process and the folder it starts in.
+pub fn new_run_id(run_dir: &Path) -> String {
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos());
+    let seed = format!("{now} {} {}", std::process::id(), run_dir.display());
+    sha256_hex(seed.as_bytes())[..16].to_string()
 }
 
 fn unit_scale() -> f64 {
@@ -527,6 +541,7 @@ mod tests {
                 policy_lr_scale: scale,
                 checksums: BTreeMap::new(),
                 input_digests: BTreeMap::new(),
+                run_id: None,
             };
             let text = serde_json::to_vec_pretty(&state).expect("serialises");
             let back: LoopState = serde_json::from_slice(&text).expect("parses");

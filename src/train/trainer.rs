@@ -303,6 +303,7 @@ impl<'d> Trainer<'d> {
                         policy_lr_scale: 1.0,
                         checksums: Default::default(),
                         input_digests: digests,
+                        run_id: Some(checkpoint::new_run_id(run_dir)),
                     },
                 )
             }
