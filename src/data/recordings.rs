@@ -192,10 +192,16 @@ pub struct Recordings {
 /// whole binary file.
 const MAX_HEADER_BYTES: usize = 64 * 1024;
 
+/// The text of the recordings file `path`, refused at the first line longer than a header
+/// may be (a data row is a few hundred bytes).
+pub fn read_recordings_text(path: &Path) -> Result<String> {
+    crate::io::read_lines(path, crate::io::Format::Recordings, MAX_HEADER_BYTES)
+}
+
 impl Recordings {
     /// Reads and parses a recordings CSV file.
     pub fn load(path: &Path) -> Result<Self> {
-        let text = crate::io::read_text(path, crate::io::Format::Recordings)?;
+        let text = read_recordings_text(path)?;
         Self::parse(&path.display().to_string(), &text)
     }
 

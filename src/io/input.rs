@@ -260,6 +260,46 @@ pub fn read_text(path: &Path, format: Format) -> Result<String> {
     utf8_text(read_bytes(path, format)?, &path.display().to_string())
 }
 
+/// The text of a line-based file (a CSV) with no line longer than `max_line` bytes: a longer
+/// one is refused at its line as soon as it is met, so a file that is one huge line (binary
+/// data, a missing line break) costs `max_line` bytes to refuse, not its whole size twice
+/// over in a parser's buffers.
+pub fn read_lines(path: &Path, format: Format, max_line: usize) -> Result<String> {
+    use std::io::BufRead;
+    let file = open_regular(path)?;
+    if let Ok(meta) = file.metadata()
+        && meta.len() > format.limit()
+    {
+        return Err(read_error(path, too_large(format)));
+    }
+    let mut reader = std::io::BufReader::new(capped(file, format));
+    let mut bytes = Vec::new();
+    for line in 1.. {
+        let start = bytes.len();
+        let read = (&mut reader)
+            .take(max_line as u64 + 1)
+            .read_until(b'\n', &mut bytes)
+            .map_err(|e| read_error(path, e))?;
+        if read == 0 {
+            break;
+        }
+        if read > max_line && bytes.last() != Some(&b'\n') {
+            return Err(Error::Parse {
+                source_name: named(path),
+                line,
+                column: 1,
+                message: format!(
+                    "the line is longer than {max_line} bytes; expected {} (a line break \
+                     missing, or not a text file?)",
+                    format.name()
+                ),
+            });
+        }
+        bytes.truncate(start + read);
+    }
+    utf8_text(bytes, &path.display().to_string())
+}
+
 /// `reader` that fails with [`std::io::ErrorKind::FileTooLarge`] (and a message naming the
 /// format's cap) once it has yielded more than `format` allows. For streams whose size is not
 /// known in advance, such as a decompressed gzip file.

@@ -22,8 +22,8 @@ pub use claim::{
 };
 pub use input::{
     Capped, Format, capped, check_input_file, check_input_folder, check_input_path, check_size,
-    files_in_tree, list_folder, not_regular, open_regular, read_bytes, read_error, read_text,
-    utf8_text,
+    files_in_tree, list_folder, not_regular, open_regular, read_bytes, read_error, read_lines,
+    read_text, utf8_text,
 };
 pub use json_error::{json_error, parse_json, parse_json_reader};
 pub use nested::SWEEP_KIND;

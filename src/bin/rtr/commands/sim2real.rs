@@ -79,7 +79,7 @@ pub fn run(args: Sim2RealArgs) -> Result<()> {
             rtr::io::check_input_file(path, "--recordings")?;
             // Read once: the digest is of exactly what was fitted, whatever lies at the path
             // later (another command may replace it).
-            let text = rtr::io::read_text(path, rtr::io::Format::Recordings)?;
+            let text = rtr::data::recordings::read_recordings_text(path)?;
             source_sha256 = Some(rtr::data::automatum::sha256_hex(text.as_bytes()));
             (
                 rtr::data::Recordings::parse(&path.display().to_string(), &text)?,
