@@ -4,6 +4,7 @@
 //! step in the carriageway that no vehicle can follow, and a map drawn from it falls apart.
 
 use super::lateral::{LaneSpan, for_each_span};
+use super::number_text::Num;
 use super::opendrive::{Poly3Record, Road};
 
 /// The largest step an edge may take where one record or section hands over to the next (m):
@@ -53,9 +54,15 @@ pub fn first_section_break(road: &Road) -> Option<(usize, String)> {
                         format!(
                             "road {}: lane {from} ends the laneSection at s={} with its edges at \
                              t = {:.2} / {:.2} m, but lane {to}, which continues it in the next \
-                             one, starts at t = {:.2} / {:.2} m ({step:.2} m apart); expected \
+                             one, starts at t = {:.2} / {:.2} m ({:.2} m apart); expected \
                              joined lanes to meet within {MAX_EDGE_STEP} m",
-                            road.id, section.s, end.inner, end.outer, start.inner, start.outer
+                            road.id,
+                            Num(section.s),
+                            Num(end.inner),
+                            Num(end.outer),
+                            Num(start.inner),
+                            Num(start.outer),
+                            Num(step)
                         ),
                     )
                 })

@@ -12,6 +12,7 @@ mod lanelet;
 mod lanelet_surface;
 mod lanes;
 mod lateral;
+mod number_text;
 mod opendrive;
 mod procedural;
 mod procedural_parts;

@@ -5,6 +5,7 @@
 //! network (links, junctions, lane links) is [`super::topology_checks`].
 
 use super::lateral::{for_each_span, section_end};
+use super::number_text::Num;
 use super::opendrive::{OpenDrive, Road};
 use super::reference_line::eval_road;
 use super::topology_checks::{
@@ -46,13 +47,14 @@ fn lanes_fit_their_bends(od: &OpenDrive) -> Option<Problem> {
                                 lane: lane.id,
                             },
                             message: format!(
-                                "lane {} of road {} at s = {s:.1} m: its outer edge lies \
+                                "lane {} of road {} at s = {:.1} m: its outer edge lies \
                                  {:.2} m from the reference line, beyond the {:.2} m radius of \
                                  the bend there; the lane would fold over itself",
                                 lane.id,
                                 road.id,
-                                span.outer.abs(),
-                                1.0 / curvature.abs()
+                                Num(s),
+                                Num(span.outer.abs()),
+                                Num(1.0 / curvature.abs())
                             ),
                         });
                     }
@@ -83,10 +85,10 @@ fn reference_lines_do_not_cross(od: &OpenDrive) -> Option<Problem> {
                     "road {}: its reference line crosses itself near ({:.1}, {:.1}) (at s = \
                      {:.1} m and s = {:.1} m); expected a line that does not loop over itself",
                     road.id,
-                    points[a][0],
-                    points[a][1],
-                    road.length * a as f64 / n as f64,
-                    road.length * b as f64 / n as f64
+                    Num(points[a][0]),
+                    Num(points[a][1]),
+                    Num(road.length * a as f64 / n as f64),
+                    Num(road.length * b as f64 / n as f64)
                 ),
             });
         }
@@ -110,8 +112,8 @@ fn surfaces_do_not_fold(od: &OpenDrive) -> Option<Problem> {
                      road winds back over itself closer than it is wide); expected a surface \
                      that does not fold onto itself",
                     road.id,
-                    at(b),
-                    at(a)
+                    Num(at(b)),
+                    Num(at(a))
                 ),
             });
         }
@@ -341,9 +343,13 @@ fn overlap_problem(
         place: Place::Road(later.id.clone()),
         message: format!(
             "road {} overlaps road {}: the centre of road {}'s lane {lane} runs on road {}'s \
-             surface for more than {MAX_OVERLAP} m from s = {from:.1}: two carriageways over one \
+             surface for more than {MAX_OVERLAP} m from s = {:.1}: two carriageways over one \
              another; expected roads that meet only at their ends or in a junction",
-            later.id, earlier.id, road.id, other.id
+            later.id,
+            earlier.id,
+            road.id,
+            other.id,
+            Num(from)
         ),
     }
 }

@@ -6,6 +6,7 @@
 //! parser turns that into the element's line.
 
 use super::lateral::{for_each_span, section_index};
+use super::number_text::Num;
 use super::opendrive::{Connection, ContactPoint, ElementType, Junction, OpenDrive, Road};
 use super::reference_line::eval_road;
 
@@ -298,6 +299,7 @@ fn links_meet(od: &OpenDrive) -> Option<Problem> {
     road_links(od).find_map(|l| {
         let gap = end_gap(l.road, l.own_end, l.other, l.contact);
         (gap > LINK_TOLERANCE).then(|| {
+            let gap = Num(gap);
             l.problem(format!(
                 "the two ends lie {gap:.2} m apart; expected them to meet (one's end on the \
                  other's end cross-section, within {LINK_TOLERANCE} m)"
@@ -325,6 +327,7 @@ fn links_keep_direction(od: &OpenDrive) -> Option<Problem> {
         let theirs = end_heading(l.other, l.contact);
         let turn = crate::geometry::wrap_angle(own - theirs - facing).abs();
         (turn > LINK_MAX_TURN_RAD).then(|| {
+            let turn = Num(turn);
             l.problem(format!(
                 "the roads turn by {turn:.2} rad there (a road drawn backwards, or the wrong \
                  contact point?); expected the direction of travel to carry on (within \
@@ -481,9 +484,11 @@ fn connections_meet(od: &OpenDrive) -> Option<Problem> {
                     id: c.id.clone(),
                 },
                 message: format!(
-                    "connecting road {} starts {gap:.2} m from either end of its incoming \
+                    "connecting road {} starts {:.2} m from either end of its incoming \
                      road {}; expected it to touch one (within {LINK_TOLERANCE} m)",
-                    connecting.id, incoming.id
+                    connecting.id,
+                    Num(gap),
+                    incoming.id
                 ),
             });
         }
@@ -729,13 +734,14 @@ fn edge_gap(
     let gap = distance(a_inner, b_inner).max(distance(a_outer, b_outer));
     (gap > EDGE_TOLERANCE).then(|| {
         format!(
-            "lane {a_lane} of road {} and lane {b_lane} of road {}, linked, have edges {gap:.2} \
+            "lane {a_lane} of road {} and lane {b_lane} of road {}, linked, have edges {:.2} \
              m apart where they join (widths {:.2} and {:.2} m); expected their edges to meet \
              (within {EDGE_TOLERANCE} m)",
             a.id,
             b.id,
-            distance(a_inner, a_outer),
-            distance(b_inner, b_outer)
+            Num(gap),
+            Num(distance(a_inner, a_outer)),
+            Num(distance(b_inner, b_outer))
         )
     })
 }

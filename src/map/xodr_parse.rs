@@ -14,6 +14,7 @@
 //! distort or exhaust the map sampler.
 
 use super::lane_continuity;
+use super::number_text::Num;
 use super::reference_line::param_poly3_length;
 use super::topology_checks::Place;
 use roxmltree::{Document, Node};
@@ -177,8 +178,9 @@ fn parse(text: &str, source_name: &str, check_topology: bool) -> Result<OpenDriv
         return Err(cx.err(
             root,
             format!(
-                "no driving lane is {MIN_DRIVING_WIDTH} m wide anywhere (widest {widest_driving} \
-                 m); expected lanes {MIN_DRIVING_WIDTH}-{MAX_LANE_WIDTH} m wide"
+                "no driving lane is {MIN_DRIVING_WIDTH} m wide anywhere (widest {} m); \
+                 expected lanes {MIN_DRIVING_WIDTH}-{MAX_LANE_WIDTH} m wide",
+                Num(widest_driving)
             ),
         ));
     }
@@ -348,8 +350,9 @@ impl Ctx<'_, '_> {
             return Err(self.err(
                 node,
                 format!(
-                    "<{}> attribute `{name}` is {v}, expected a value >= 0",
-                    node.tag_name().name()
+                    "<{}> attribute `{name}` is {}, expected a value >= 0",
+                    node.tag_name().name(),
+                    Num(v)
                 ),
             ));
         }
@@ -363,10 +366,11 @@ impl Ctx<'_, '_> {
             return Err(self.err(
                 node,
                 format!(
-                    "<{}> attribute `{name}` is {k} 1/m, a radius of {} m; expected a radius of \
+                    "<{}> attribute `{name}` is {} 1/m, a radius of {} m; expected a radius of \
                      at least {} m (|{name}| <= {MAX_CURVATURE})",
                     node.tag_name().name(),
-                    1.0 / k.abs(),
+                    Num(k),
+                    Num(1.0 / k.abs()),
                     1.0 / MAX_CURVATURE
                 ),
             ));
@@ -427,7 +431,11 @@ impl Ctx<'_, '_> {
         if !(speed > 0.0 && speed <= max) {
             return Err(self.err(
                 node,
-                format!("<speed> attribute `max` is {raw} ({speed} m/s); expected a limit in (0, {max}] m/s"),
+                format!(
+                    "<speed> attribute `max` is {} ({} m/s); expected a limit in (0, {max}] m/s",
+                    Num(v),
+                    Num(speed)
+                ),
             ));
         }
         Ok(Some(speed))
@@ -489,7 +497,9 @@ impl Ctx<'_, '_> {
                     format!(
                         "road {}: <geometry> at s = {} comes after the previous one, at s = \
                          {}; expected geometries in increasing s",
-                        road.id, geometry.s, previous.s
+                        road.id,
+                        Num(geometry.s),
+                        Num(previous.s)
                     ),
                 ));
             }
@@ -572,7 +582,9 @@ impl Ctx<'_, '_> {
                     format!(
                         "road {}: <laneSection> attribute `s` is {}; expected metres in [0, {}) \
                          (the road's length)",
-                        road.id, section.s, road.length
+                        road.id,
+                        Num(section.s),
+                        Num(road.length)
                     ),
                 ));
             }
@@ -584,7 +596,9 @@ impl Ctx<'_, '_> {
                     format!(
                         "road {}: <laneSection> at s = {} follows one at s = {}; expected lane \
                          sections in increasing s",
-                        road.id, section.s, previous.s
+                        road.id,
+                        Num(section.s),
+                        Num(previous.s)
                     ),
                 ));
             }
@@ -605,7 +619,8 @@ impl Ctx<'_, '_> {
                 format!(
                     "road {}: the first <laneSection> starts at s = {first}; expected s = 0 \
                      (the road's first {first} m would have no lanes)",
-                    road.id
+                    road.id,
+                    first = Num(first)
                 ),
             ));
         }
@@ -633,8 +648,8 @@ impl Ctx<'_, '_> {
                         "road {}: <laneOffset> moves the lanes {} m from the reference line at \
                          s={}; expected at most {MAX_LANE_OFFSET} m",
                         road.id,
-                        offset.value(ds),
-                        offset.s + ds
+                        Num(offset.value(ds)),
+                        Num(offset.s + ds)
                     ),
                 ));
             }
@@ -646,7 +661,9 @@ impl Ctx<'_, '_> {
                     format!(
                         "road {}: <laneOffset> at s = {} comes after the previous one, at s = \
                          {}; expected lane offsets in increasing s",
-                        road.id, offset.s, previous.s
+                        road.id,
+                        Num(offset.s),
+                        Num(previous.s)
                     ),
                 ));
             }
@@ -657,10 +674,11 @@ impl Ctx<'_, '_> {
             return Err(self.err(
                 offset_nodes[k].1,
                 format!(
-                    "road {}: <laneOffset> at s={} moves the lanes {step:.2} m sideways at once; \
+                    "road {}: <laneOffset> at s={} moves the lanes {:.2} m sideways at once; \
                      expected it to start within {} m of where the previous one ended",
                     road.id,
-                    road.lane_offsets[k].s,
+                    Num(road.lane_offsets[k].s),
+                    Num(step),
                     lane_continuity::MAX_EDGE_STEP
                 ),
             ));
@@ -674,7 +692,8 @@ impl Ctx<'_, '_> {
             return Err(self.err(
                 node,
                 format!(
-                    "<road> attribute `length` is {length}; expected metres in (0, {MAX_ROAD_LENGTH}]"
+                    "<road> attribute `length` is {}; expected metres in (0, {MAX_ROAD_LENGTH}]",
+                    Num(length)
                 ),
             ));
         }
@@ -701,9 +720,9 @@ impl Ctx<'_, '_> {
                              within the section",
                             road.id,
                             lane.id,
-                            sec.s,
-                            late.s,
-                            end - sec.s
+                            Num(sec.s),
+                            Num(late.s),
+                            Num(end - sec.s)
                         ),
                     ));
                 }
@@ -713,9 +732,13 @@ impl Ctx<'_, '_> {
                     return Err(self.err(
                         lanes,
                         format!(
-                            "road {}: lane {} of the laneSection at s={} is {w} m wide at s={s}; \
+                            "road {}: lane {} of the laneSection at s={} is {} m wide at s={}; \
                              expected 0-{MAX_LANE_WIDTH} m",
-                            road.id, lane.id, sec.s
+                            road.id,
+                            lane.id,
+                            Num(sec.s),
+                            Num(w),
+                            Num(s)
                         ),
                     ));
                 }
@@ -844,9 +867,10 @@ impl Ctx<'_, '_> {
                 return Err(self.err(
                     shape,
                     format!(
-                        "<paramPoly3> draws a curve {curve:.2} m long, but its <geometry> says \
+                        "<paramPoly3> draws a curve {:.2} m long, but its <geometry> says \
                          `length` {} m; expected the two to agree (within {} %)",
-                        geometry.length,
+                        Num(curve),
+                        Num(geometry.length),
                         CURVE_LENGTH_TOLERANCE * 100.0
                     ),
                 ));
@@ -875,7 +899,7 @@ impl Ctx<'_, '_> {
                 format!(
                     "<{}> bends at a radius of {} m; expected a radius of at least {} m",
                     shape.tag_name().name(),
-                    1.0 / k,
+                    Num(1.0 / k),
                     1.0 / MAX_CURVATURE
                 ),
             ));
@@ -891,9 +915,10 @@ impl Ctx<'_, '_> {
             return Err(self.err(
                 node,
                 format!(
-                    "<{}> attribute `{name}` is {h}: looks like degrees; expected radians, \
+                    "<{}> attribute `{name}` is {}: looks like degrees; expected radians, \
                      |{name}| <= 2 pi",
-                    node.tag_name().name()
+                    node.tag_name().name(),
+                    Num(h)
                 ),
             ));
         }
@@ -910,8 +935,7 @@ impl Ctx<'_, '_> {
                     "<{}> attribute `{name}` is {} m; expected |{name}| <= {MAX_COORDINATE} m \
                      (metres from the map origin)",
                     node.tag_name().name(),
-                    // As written: `1e300` printed as a number has 301 digits.
-                    node.attribute(name).unwrap_or_default().trim()
+                    Num(v)
                 ),
             ));
         }
@@ -935,10 +959,19 @@ impl Ctx<'_, '_> {
                     node,
                     format!(
                         "road {}: the <geometry> at s={} starts at ({}, {}) heading {} rad, but \
-                         the previous one ends at ({:.3}, {:.3}) heading {:.4} rad ({gap:.3} m \
-                         and {kink:.4} rad apart); expected a reference line without jumps or \
+                         the previous one ends at ({:.3}, {:.3}) heading {:.4} rad ({:.3} m \
+                         and {:.4} rad apart); expected a reference line without jumps or \
                          kinks",
-                        road.id, next.s, next.x, next.y, next.hdg, end.x, end.y, end.hdg
+                        road.id,
+                        Num(next.s),
+                        Num(next.x),
+                        Num(next.y),
+                        Num(next.hdg),
+                        Num(end.x),
+                        Num(end.y),
+                        Num(end.hdg),
+                        Num(gap),
+                        Num(kink)
                     ),
                 ));
             }
@@ -949,9 +982,11 @@ impl Ctx<'_, '_> {
                 return Err(self.err(
                     plan_view,
                     format!(
-                        "road {}: a <geometry> starts at s={} but the previous one ends at s={end}; \
+                        "road {}: a <geometry> starts at s={} but the previous one ends at s={}; \
                          expected geometries that follow one another",
-                        road.id, g.s
+                        road.id,
+                        Num(g.s),
+                        Num(end)
                     ),
                 ));
             }
@@ -961,9 +996,11 @@ impl Ctx<'_, '_> {
             return Err(self.err(
                 plan_view,
                 format!(
-                    "road {}: the <geometry> elements end at s={end} but the road is {} m long; \
+                    "road {}: the <geometry> elements end at s={} but the road is {} m long; \
                      expected them to cover the road",
-                    road.id, road.length
+                    road.id,
+                    Num(end),
+                    Num(road.length)
                 ),
             ));
         }
@@ -1011,7 +1048,7 @@ impl Ctx<'_, '_> {
                 format!(
                     "laneSection at s={}: no <center> lane; expected <center><lane id=\"0\" \
                      .../></center> (the reference line the lanes are counted from)",
-                    sec.s
+                    Num(sec.s)
                 ),
             ));
         }
@@ -1024,7 +1061,7 @@ impl Ctx<'_, '_> {
                         node,
                         format!(
                             "laneSection at s={}: lane ids on one side must be consecutive from ±1, found {}",
-                            sec.s,
+                            Num(sec.s),
                             side.iter().map(|l| l.id.to_string()).collect::<Vec<_>>().join(", ")
                         ),
                     ));
@@ -1070,8 +1107,10 @@ impl Ctx<'_, '_> {
                     return Err(self.err(
                         child,
                         format!(
-                            "lane {id}: <{tag}> at sOffset = {offset} follows one at sOffset = \
-                             {previous}; expected <{tag}> records in increasing sOffset"
+                            "lane {id}: <{tag}> at sOffset = {} follows one at sOffset = {}; \
+                             expected <{tag}> records in increasing sOffset",
+                            Num(offset),
+                            Num(previous)
                         ),
                     ));
                 }
@@ -1123,10 +1162,11 @@ impl Ctx<'_, '_> {
             return Err(self.err(
                 width_nodes[k],
                 format!(
-                    "lane {id}: <width> at sOffset = {} changes the lane's width by {step:.2} m \
+                    "lane {id}: <width> at sOffset = {} changes the lane's width by {:.2} m \
                      at once; expected it to start within {} m of the width the previous record \
                      ended with",
-                    lane.widths[k].s,
+                    Num(lane.widths[k].s),
+                    Num(step),
                     lane_continuity::MAX_EDGE_STEP
                 ),
             ));
