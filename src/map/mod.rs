@@ -24,6 +24,7 @@ mod shape_checks;
 mod topology;
 mod topology_checks;
 mod xodr_parse;
+mod xodr_schema;
 mod xodr_write;
 
 #[cfg(test)]

@@ -362,11 +362,12 @@ fn invalid_maps_are_errors_not_panics() {
             "{msg}"
         );
     }
+    // A child OpenDRIVE does not define there is refused, not ignored.
     let text = straight_xodr(100.0, &lanes, None).replace("<center>", "<center><link/>");
-    assert!(
-        Map::from_xodr_str(&text, "ok").is_ok(),
-        "unknown children are ignored"
-    );
+    let msg = Map::from_xodr_str(&text, "bad.xodr")
+        .expect_err("unknown child")
+        .to_string();
+    assert!(msg.contains("<center> has child <link>"), "{msg}");
     let err = Map::from_xodr_file(Path::new("/nonexistent/map.xodr")).expect_err("no file");
     assert!(err.to_string().contains("/nonexistent/map.xodr"));
     let mut od = parse_xodr(&straight_xodr(100.0, &lanes, None), "x").expect("parses");

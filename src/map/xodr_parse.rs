@@ -1,11 +1,14 @@
 //! Reads an OpenDRIVE document into [`OpenDrive`]. Every error names the source, the line and
 //! column of the offending element, the attribute and what was expected.
 //!
-//! Elements that do not change the driving geometry (header, userData, material, objects,
-//! signals, elevation and lateral profiles, surface, rule, access, height, visibility, and any
-//! other element we do not know) are skipped silently. Unknown children where they *would*
-//! change the geometry are errors: a plan-view geometry other than the five supported ones, and
-//! lanes described by `<border>` instead of `<width>`.
+//! Inside the elements rtr reads (roads, their links, types, plan view, lanes; junctions and
+//! their connections), every attribute and child element must be one the OpenDRIVE standard
+//! (1.4 to 1.8) defines there ([`super::xodr_schema`]): a misspelt `<roadmark>` or `colour=`
+//! is refused, not dropped. Standard elements that do not change the driving geometry (header
+//! details, userData, material, objects, signals, elevation and lateral profiles, surface,
+//! rule, access, height, visibility) are skipped, subtree and all. Standard children that
+//! *would* change the geometry are errors: a plan-view geometry other than the five supported
+//! ones, and lanes described by `<border>` instead of `<width>`.
 //!
 //! Values are checked for physical sense where they are read: a lane 0-10 m wide everywhere
 //! along its section (0 where it opens or ends), some lane vehicles follow at least 0.5 m wide, roads
@@ -17,6 +20,7 @@ use super::lane_continuity;
 use super::number_text::Num;
 use super::reference_line::param_poly3_length;
 use super::topology_checks::Place;
+use super::xodr_schema;
 use roxmltree::{Document, Node};
 
 use super::opendrive::*;
@@ -140,6 +144,9 @@ fn parse(text: &str, source_name: &str, check_topology: bool) -> Result<OpenDriv
                 root.tag_name().name()
             ),
         ));
+    }
+    if let Some((node, message)) = xodr_schema::first_unknown(root, &xodr_schema::OPENDRIVE) {
+        return Err(cx.err(node, message));
     }
     if let Some(header) = element(root, "header") {
         cx.enumerated(header, "revMajor", &["1"])?;
@@ -788,13 +795,23 @@ impl Ctx<'_, '_> {
         })
     }
 
-    fn geometry(&self, node: Node) -> Result<Geometry> {
-        let shapes: Vec<Node> = node.children().filter(Node::is_element).collect();
+    /// The one shape child (`<line>`, `<arc>`, ...) of a `<geometry>`; additional data beside it
+    /// is not a shape.
+    fn shape<'a, 'input>(&self, node: Node<'a, 'input>) -> Result<Node<'a, 'input>> {
+        let shapes: Vec<Node> = node
+            .children()
+            .filter(|c| c.is_element() && !xodr_schema::is_additional_data(*c))
+            .collect();
         let shape = match shapes.as_slice() {
             [one] => *one,
             [] => return Err(self.err(node, "<geometry> has no shape child; expected one of line, arc, spiral, poly3, paramPoly3")),
             [_, second, ..] => return Err(self.err(*second, "<geometry> has more than one shape child; expected exactly one of line, arc, spiral, poly3, paramPoly3")),
         };
+        Ok(shape)
+    }
+
+    fn geometry(&self, node: Node) -> Result<Geometry> {
+        let shape = self.shape(node)?;
         let kind = match shape.tag_name().name() {
             "line" => GeometryKind::Line,
             "arc" => GeometryKind::Arc {

@@ -935,3 +935,104 @@ fn a_junction_and_its_roads_must_agree_on_membership() {
         "{message}"
     );
 }
+
+/// `cases` of (document, part of the message, text on the line to blame): each refused.
+fn assert_refused(cases: &[(String, &str, &str)]) {
+    for (text, expected, at) in cases {
+        let (line, message) = parse_err(text);
+        assert!(message.contains(expected), "{expected}: {message}");
+        assert_eq!(line, line_of(text, at), "{expected}: {message}");
+    }
+}
+
+/// A road ("a", 40 m) whose lane -1 has a road mark and a speed record.
+fn marked_road() -> String {
+    straight("a", 0.0, 40.0, "", "").replacen(
+        "<width sOffset=\"0\" a=\"3.5\" b=\"0\" c=\"0\" d=\"0\"/></lane>",
+        "<width sOffset=\"0\" a=\"3.5\" b=\"0\" c=\"0\" d=\"0\"/>\n  \
+         <roadMark sOffset=\"0\" type=\"broken\" color=\"white\" width=\"0.12\"/>\n  \
+         <speed sOffset=\"0\" max=\"30\"/></lane>",
+        1,
+    )
+}
+
+#[test]
+fn names_opendrive_does_not_define_are_refused_with_their_line() {
+    let road = marked_road();
+    // The standard's elements rtr does not read are skipped, subtree and all.
+    let rich = document(
+        &road
+            .replacen(
+                "<planView>",
+                "<userData code=\"x\"><anything at=\"all\"/></userData>\
+                 <elevationProfile><elevation s=\"0\" a=\"0\" b=\"0\" c=\"0\" d=\"0\"/></elevationProfile>\
+                 <objects><object id=\"1\" s=\"0\" t=\"0\"/></objects><signals/>\n <planView>",
+                1,
+            )
+            .replacen(
+                "width=\"0.12\"/>",
+                "width=\"0.12\"><type name=\"x\" width=\"0.1\"><line length=\"3\" space=\"6\" \
+                 tOffset=\"0\" sOffset=\"0\"/></type></roadMark><material sOffset=\"0\" \
+                 friction=\"1\"/><access sOffset=\"0\" rule=\"allow\"/><height sOffset=\"0\" \
+                 inner=\"0\" outer=\"0\"/>",
+                1,
+            )
+            .replacen("<line/>", "<line/><userData/>", 1),
+    )
+    .replace(
+        "<OpenDRIVE>",
+        "<OpenDRIVE xmlns:xsi=\"http://www.w3.org/2001/XMLSchema-instance\" \
+         xsi:noNamespaceSchemaLocation=\"OpenDRIVE_1.6.xsd\">",
+    );
+    parse_xodr(&rich, "t").expect("standard elements rtr does not read");
+    let lane_children = "link, border, width, roadMark, material, visibility, speed, access, \
+                         height, rule, userData, include, dataQuality";
+    assert_refused(&[
+        (
+            document(&road.replace("<roadMark", "<roadmark")),
+            "<lane> has child <roadmark>, which OpenDRIVE does not define in <lane> (did you \
+             mean `roadMark`?); expected one of link",
+            "<roadmark",
+        ),
+        (
+            document(&road.replacen(
+                "<speed",
+                "<widht sOffset=\"20\" a=\"1\" b=\"0\" c=\"0\" d=\"0\"/>\n  <speed",
+                1,
+            )),
+            lane_children,
+            "<widht",
+        ),
+        (
+            document(&road.replacen("d=\"0\"/>", "d=\"0\" e=\"5\"/>", 1)),
+            "<width> has attribute `e`, which OpenDRIVE does not define for <width>; expected \
+             one of sOffset, a, b, c, d",
+            "e=\"5\"",
+        ),
+        (
+            document(&road.replacen("<line/>", "<arc curvature=\"0.001\" radius=\"1000\"/>", 1)),
+            "<arc> has attribute `radius`",
+            "radius=",
+        ),
+        (
+            document(&road.replacen("type=\"driving\"", "type=\"driving\" widht=\"3\"", 1)),
+            "<lane> has attribute `widht`",
+            "widht=",
+        ),
+        (
+            document(&road.replacen("color=\"white\"", "colour=\"yellow\"", 1)),
+            "<roadMark> has attribute `colour`",
+            "colour=",
+        ),
+        (
+            document(&road.replacen("<planView>", "<planVeiw/>\n <planView>", 1)),
+            "<road> has child <planVeiw>",
+            "<planVeiw",
+        ),
+        (
+            document(&road.replacen("<lanes>", "<t_road_extra/>\n <lanes>", 1)),
+            "<road> has child <t_road_extra>",
+            "<t_road_extra",
+        ),
+    ]);
+}
