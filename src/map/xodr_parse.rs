@@ -11,10 +11,13 @@
 //! ones, and lanes described by `<border>` instead of `<width>`.
 //!
 //! Values are checked for physical sense where they are read: a lane 0-10 m wide everywhere
-//! along its section (0 where it opens or ends), some lane vehicles follow at least 0.5 m wide, roads
-//! of positive length up to 100 km, curvature radii of at least 2 m, and at least one road.
-//! Anything else (a 1e9 m lane, a negative width, a 1 mm arc) is nonsense that would silently
-//! distort or exhaust the map sampler.
+//! along its section (0 where it opens or ends), every lane vehicles follow wider than 0
+//! somewhere in its section and some at least 0.5 m wide, roads of positive length up to
+//! 100 km, curvature radii of at least 2 m, road marks 0-1 m wide, records (`sOffset`,
+//! `<type s>`) inside their lane section or road, a header of OpenDRIVE 1.0 to 1.8, and at
+//! least one road. Anything else (a 1e9 m lane, a negative width, a 1 mm arc) is nonsense that
+//! would silently distort or exhaust the map sampler. Numbers in messages are written by one
+//! rule ([`Num`]): `1e300`, not 301 digits.
 
 use super::lane_continuity;
 use super::number_text::Num;
@@ -32,6 +35,12 @@ const MAX_LANE_WIDTH: f64 = 10.0;
 /// Some lane vehicles follow (driving, ramp, entry, exit) must be at least this wide
 /// somewhere (m).
 const MIN_DRIVING_WIDTH: f64 = 0.5;
+/// Widest plausible road mark (m). Longitudinal lines are 0.10-0.30 m wide by national rules
+/// (0.12 normal, 0.25-0.30 bold edge and lane-drop lines), block and hatched-area borders up to
+/// 0.5 m; 1 m is twice the widest, and a wider "line" would paint over a third of a lane.
+const MAX_ROAD_MARK_WIDTH: f64 = 1.0;
+/// The minor revisions OpenDRIVE 1 has published (1.0 to 1.8).
+const REV_MINORS: [&str; 9] = ["0", "1", "2", "3", "4", "5", "6", "7", "8"];
 /// Longest plausible road (m).
 const MAX_ROAD_LENGTH: f64 = 100_000.0;
 /// Tightest plausible curvature (1/m): a 2 m radius.
@@ -150,6 +159,7 @@ fn parse(text: &str, source_name: &str, check_topology: bool) -> Result<OpenDriv
     }
     if let Some(header) = element(root, "header") {
         cx.enumerated(header, "revMajor", &["1"])?;
+        cx.enumerated(header, "revMinor", &REV_MINORS)?;
     }
     let mut out = OpenDrive::default();
     for child in root.children().filter(Node::is_element) {
@@ -191,6 +201,7 @@ fn parse(text: &str, source_name: &str, check_topology: bool) -> Result<OpenDriv
             ),
         ));
     }
+    cx.check_no_vanishing_lane(root, &out)?;
     if let Some(problem) = check_topology
         .then(|| super::topology_checks::check(&out))
         .flatten()
@@ -262,6 +273,21 @@ fn elements<'a, 'input>(
 fn element<'a, 'input>(node: Node<'a, 'input>, name: &str) -> Option<Node<'a, 'input>> {
     node.children()
         .find(|c| c.is_element() && c.tag_name().name() == name)
+}
+
+/// The `<lane>` of id `id` in the `section`th `<laneSection>` of `lanes` (in document order,
+/// which is `s` order: the reader refuses sections out of order).
+fn lane_node<'a, 'input>(
+    lanes: Node<'a, 'input>,
+    section: usize,
+    id: i32,
+) -> Option<Node<'a, 'input>> {
+    elements(lanes, "laneSection").nth(section).and_then(|sec| {
+        sec.descendants().find(|n| {
+            n.has_tag_name("lane")
+                && n.attribute("id").and_then(|v| v.trim().parse().ok()) == Some(id)
+        })
+    })
 }
 
 fn sort_by_s<T>(v: &mut [T], s: impl Fn(&T) -> f64) {
@@ -568,7 +594,7 @@ impl Ctx<'_, '_> {
             };
             self.enumerated(t, "type", &ROAD_TYPES)?;
             road.types.push(RoadType {
-                s: self.req_f64(t, "s")?,
+                s: self.road_position(t, &road)?,
                 kind: self.req_str(t, "type")?.to_string(),
                 speed,
             });
@@ -644,6 +670,7 @@ impl Ctx<'_, '_> {
     fn lane_offsets(&self, lanes: Node, road: &mut Road) -> Result<()> {
         let mut offset_nodes = Vec::new();
         for o in elements(lanes, "laneOffset") {
+            self.road_position(o, road)?;
             let offset = self.poly3(o, "s")?;
             let length = (road.length - offset.s).max(0.0);
             if let Some(ds) =
@@ -693,6 +720,26 @@ impl Ctx<'_, '_> {
         Ok(())
     }
 
+    /// The `s` of a record along `road` (a `<type>`, a `<laneOffset>`): on the road, in
+    /// [0, length].
+    fn road_position(&self, node: Node, road: &Road) -> Result<f64> {
+        let s = self.req_f64(node, "s")?;
+        if !(0.0..=road.length).contains(&s) {
+            return Err(self.err(
+                node,
+                format!(
+                    "road {}: <{}> attribute `s` is {}; expected metres in [0, {}] (the \
+                     road's length)",
+                    road.id,
+                    node.tag_name().name(),
+                    Num(s),
+                    Num(road.length)
+                ),
+            ));
+        }
+        Ok(s)
+    }
+
     fn road_length(&self, node: Node) -> Result<f64> {
         let length = self.req_f64(node, "length")?;
         if !(length > 0.0 && length <= MAX_ROAD_LENGTH) {
@@ -707,32 +754,13 @@ impl Ctx<'_, '_> {
         Ok(length)
     }
 
-    /// Every lane is 0-10 m wide along its whole section.
+    /// Every lane is 0-10 m wide along its whole section, and every lane record starts
+    /// within it.
     fn check_widths(&self, lanes: Node, road: &Road) -> Result<()> {
-        for sec in &road.lane_sections {
+        for (k, sec) in road.lane_sections.iter().enumerate() {
             let end = section_end(road, sec);
             for lane in sec.left.iter().chain(&sec.right) {
-                // A record that starts past its section's end describes nothing of the road:
-                // written for another section, or with `s` where `sOffset` belongs.
-                if let Some(late) = lane
-                    .widths
-                    .iter()
-                    .find(|w| w.s > end - sec.s + chain_slack(road.length))
-                {
-                    return Err(self.err(
-                        lanes,
-                        format!(
-                            "road {}: lane {} of the laneSection at s={} has a <width> at \
-                             sOffset={}, past the section's end ({} m long); expected offsets \
-                             within the section",
-                            road.id,
-                            lane.id,
-                            Num(sec.s),
-                            Num(late.s),
-                            Num(end - sec.s)
-                        ),
-                    ));
-                }
+                self.check_lane_records(lanes, road, k, lane)?;
                 let bad = width_samples(lane, sec.s, end)
                     .find(|&(_, w)| !(-WIDTH_SLACK..=MAX_LANE_WIDTH).contains(&w));
                 if let Some((s, w)) = bad {
@@ -752,6 +780,79 @@ impl Ctx<'_, '_> {
             }
         }
         Ok(())
+    }
+
+    /// Every lane vehicles follow is wider than 0 somewhere in its section: one 0 m wide all
+    /// along would vanish from the map in silence (a lane that opens or closes passes).
+    fn check_no_vanishing_lane(&self, root: Node, od: &OpenDrive) -> Result<()> {
+        for (road, node) in od.roads.iter().zip(elements(root, "road")) {
+            for (k, sec) in road.lane_sections.iter().enumerate() {
+                let end = section_end(road, sec);
+                let vanished = sec.left.iter().chain(&sec.right).find(|lane| {
+                    lane.kind.is_graph_lane()
+                        && width_samples(lane, sec.s, end).all(|(_, w)| w <= WIDTH_SLACK)
+                });
+                let Some(lane) = vanished else {
+                    continue;
+                };
+                let lanes = element(node, "lanes").unwrap_or(node);
+                return Err(self.err(
+                    lane_node(lanes, k, lane.id).unwrap_or(lanes),
+                    format!(
+                        "road {}: lane {} ({}) of the laneSection at s={} is 0 m wide along the \
+                         whole section, so it would vanish from the map; expected a lane \
+                         vehicles follow to open somewhere (or a type such as `none`)",
+                        road.id,
+                        lane.id,
+                        lane.kind.name(),
+                        Num(sec.s)
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// A lane's `<width>`, `<roadMark>` and `<speed>` records start within the lane section
+    /// (the `k`th of `road`): one past its end describes nothing of the road, written for
+    /// another section or with `s` where `sOffset` belongs.
+    fn check_lane_records(&self, lanes: Node, road: &Road, k: usize, lane: &Lane) -> Result<()> {
+        let sec = &road.lane_sections[k];
+        let length = section_end(road, sec) - sec.s;
+        let limit = length + chain_slack(road.length);
+        let late = (lane.widths.iter().map(|w| ("width", w.s)))
+            .chain(lane.road_marks.iter().map(|m| ("roadMark", m.s_offset)))
+            .chain(lane.speeds.iter().map(|v| ("speed", v.s_offset)))
+            .find(|&(_, s)| s > limit);
+        let Some((tag, s)) = late else {
+            return Ok(());
+        };
+        // The width check came first and blamed <lanes>; the other records are found by line.
+        let node = if tag == "width" {
+            lanes
+        } else {
+            lane_node(lanes, k, lane.id)
+                .and_then(|l| {
+                    elements(l, tag).find(|r| {
+                        r.attribute("sOffset")
+                            .and_then(|v| v.trim().parse::<f64>().ok())
+                            == Some(s)
+                    })
+                })
+                .unwrap_or(lanes)
+        };
+        Err(self.err(
+            node,
+            format!(
+                "road {}: lane {} of the laneSection at s={} has a <{tag}> at sOffset={}, past \
+                 the section's end ({} m long); expected offsets within the section",
+                road.id,
+                lane.id,
+                Num(sec.s),
+                Num(s),
+                Num(length)
+            ),
+        ))
     }
 
     fn road_link(&self, node: Node) -> Result<RoadLink> {
@@ -1115,7 +1216,7 @@ impl Ctx<'_, '_> {
         for child in node.children().filter(Node::is_element) {
             let tag = child.tag_name().name();
             if matches!(tag, "width" | "roadMark" | "speed") {
-                let offset = self.req_f64(child, "sOffset")?;
+                let offset = self.s_offset(child)?;
                 if let Some(previous) = last_offset.insert(tag, offset)
                     && offset <= previous
                 {
@@ -1145,19 +1246,9 @@ impl Ctx<'_, '_> {
                         ),
                     ));
                 }
-                "roadMark" => lane.road_marks.push(RoadMarkRecord {
-                    s_offset: self.req_f64(child, "sOffset")?,
-                    kind: RoadMark::from_name(
-                        self.enumerated(child, "type", &RoadMark::standard_names())?
-                            .unwrap_or(self.req_str(child, "type")?),
-                    ),
-                    color: self
-                        .enumerated(child, "color", &ROAD_MARK_COLORS)?
-                        .map(str::to_string),
-                    width: self.opt_f64(child, "width")?,
-                }),
+                "roadMark" => lane.road_marks.push(self.road_mark(child)?),
                 "speed" => lane.speeds.push(LaneSpeed {
-                    s_offset: self.req_f64(child, "sOffset")?,
+                    s_offset: self.s_offset(child)?,
                     max: self.speed(child)?,
                 }),
                 "link" => {
@@ -1192,6 +1283,51 @@ impl Ctx<'_, '_> {
         sort_by_s(&mut lane.road_marks, |m| m.s_offset);
         sort_by_s(&mut lane.speeds, |m| m.s_offset);
         Ok(lane)
+    }
+
+    /// A lane record's `sOffset`: metres from the lane section's start, so >= 0 (its end is
+    /// checked with the section's, in [`Self::check_lane_records`]).
+    fn s_offset(&self, node: Node) -> Result<f64> {
+        let offset = self.req_f64(node, "sOffset")?;
+        if offset < 0.0 {
+            return Err(self.err(
+                node,
+                format!(
+                    "<{}> attribute `sOffset` is {}; expected metres >= 0 from the lane section \
+                     start",
+                    node.tag_name().name(),
+                    Num(offset)
+                ),
+            ));
+        }
+        Ok(offset)
+    }
+
+    fn road_mark(&self, node: Node) -> Result<RoadMarkRecord> {
+        let width = self.opt_f64(node, "width")?;
+        if let Some(w) = width
+            && !(0.0..=MAX_ROAD_MARK_WIDTH).contains(&w)
+        {
+            return Err(self.err(
+                node,
+                format!(
+                    "<roadMark> attribute `width` is {} m; expected a line 0-{MAX_ROAD_MARK_WIDTH} \
+                     m wide",
+                    Num(w)
+                ),
+            ));
+        }
+        Ok(RoadMarkRecord {
+            s_offset: self.s_offset(node)?,
+            kind: RoadMark::from_name(
+                self.enumerated(node, "type", &RoadMark::standard_names())?
+                    .unwrap_or(self.req_str(node, "type")?),
+            ),
+            color: self
+                .enumerated(node, "color", &ROAD_MARK_COLORS)?
+                .map(str::to_string),
+            width,
+        })
     }
 
     fn junction(&self, node: Node) -> Result<Junction> {

@@ -1036,3 +1036,124 @@ fn names_opendrive_does_not_define_are_refused_with_their_line() {
         ),
     ]);
 }
+
+#[test]
+fn lane_records_before_their_section_or_past_its_end_are_refused() {
+    let road = marked_road();
+    let typed = |s: &str| {
+        document(&road.replacen(
+            "<link>",
+            &format!("<type s=\"{s}\" type=\"town\"/>\n <link>"),
+            1,
+        ))
+    };
+    parse_xodr(&typed("10"), "t").expect("a type on the road");
+    assert_refused(&[
+        (
+            document(&road.replacen("<width sOffset=\"0\"", "<width sOffset=\"-5\"", 1)),
+            "<width> attribute `sOffset` is -5; expected metres >= 0 from the lane section start",
+            "sOffset=\"-5\"",
+        ),
+        (
+            document(&road.replacen("<roadMark sOffset=\"0\"", "<roadMark sOffset=\"-50\"", 1)),
+            "<roadMark> attribute `sOffset` is -50; expected metres >= 0",
+            "sOffset=\"-50\"",
+        ),
+        (
+            document(&road.replacen("<speed sOffset=\"0\"", "<speed sOffset=\"-1\"", 1)),
+            "<speed> attribute `sOffset` is -1; expected metres >= 0",
+            "sOffset=\"-1\"",
+        ),
+        (
+            document(&road.replacen(
+                "<speed sOffset=\"0\" max=\"30\"/>",
+                "<speed sOffset=\"0\" max=\"30\"/><speed sOffset=\"900\" max=\"20\"/>",
+                1,
+            )),
+            "has a <speed> at sOffset=900, past the section's end (40 m long)",
+            "sOffset=\"900\"",
+        ),
+        (
+            typed("950"),
+            "road a: <type> attribute `s` is 950; expected metres in [0, 40]",
+            "s=\"950\"",
+        ),
+        (
+            typed("-20"),
+            "road a: <type> attribute `s` is -20",
+            "s=\"-20\"",
+        ),
+    ]);
+}
+
+#[test]
+fn nonsense_road_mark_widths_and_revisions_are_refused() {
+    let road = marked_road();
+    assert_refused(&[
+        (
+            document(&road.replacen("width=\"0.12\"", "width=\"-3\"", 1)),
+            "<roadMark> attribute `width` is -3 m; expected a line 0-1 m wide",
+            "width=\"-3\"",
+        ),
+        (
+            document(&road.replacen("width=\"0.12\"", "width=\"50\"", 1)),
+            "<roadMark> attribute `width` is 50 m",
+            "width=\"50\"",
+        ),
+        (
+            document(&road).replace("<header/>", "<header revMajor=\"1\" revMinor=\"99\"/>"),
+            "`revMinor` is `99`; expected one of 0, 1, 2, 3, 4, 5, 6, 7, 8",
+            "<header",
+        ),
+    ]);
+    for minor in ["4", "6", "8"] {
+        let text = document(&road).replace(
+            "<header/>",
+            &format!("<header revMajor=\"1\" revMinor=\"{minor}\"/>"),
+        );
+        parse_xodr(&text, "t").expect("a published revision");
+    }
+}
+
+#[test]
+fn a_driving_lane_of_no_width_is_refused_but_one_that_opens_passes() {
+    let road = straight("a", 0.0, 40.0, "", "");
+    let lane_2 = |width: &str| {
+        document(&road.replacen(
+            "<lane id=\"-2\" type=\"driving\"><width sOffset=\"0\" a=\"3.5\" b=\"0\"",
+            &format!("<lane id=\"-2\" type=\"driving\"><width sOffset=\"0\" {width}"),
+            1,
+        ))
+    };
+    let opening = lane_2("a=\"0\" b=\"0.0875\"");
+    assert_ne!(opening, document(&road));
+    parse_xodr(&opening, "t").expect("a lane that opens");
+    parse_xodr(&lane_2("a=\"3.5\" b=\"-0.0875\""), "t").expect("a lane that closes");
+    let vanished = lane_2("a=\"0\" b=\"0\"");
+    assert_refused(&[(
+        vanished.clone(),
+        "road a: lane -2 (driving) of the laneSection at s=0 is 0 m wide along the whole section",
+        "<lane id=\"-2\"",
+    )]);
+    // A huge value is written as a number a reader can take in.
+    let (_, message) = parse_err(&lane_2("a=\"1e300\" b=\"0\""));
+    assert!(message.contains("is 1e300 m wide"), "{message}");
+}
+
+#[test]
+fn the_shipped_maps_and_what_the_writer_writes_still_load() {
+    for (name, text) in [
+        (
+            "curve",
+            include_str!("../../fuzz/seeds/opendrive/curve.xodr"),
+        ),
+        (
+            "on_ramp_merge",
+            include_str!("../../fuzz/seeds/opendrive/on_ramp_merge.xodr"),
+        ),
+    ] {
+        let od = parse_xodr(text, name).expect("a shipped seed loads");
+        parse_xodr(&to_xodr(&od), name).expect("written again, it loads");
+    }
+    parse_xodr(&a9_text(), "a9").expect("the A9 map loads");
+}
