@@ -10,6 +10,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::number_text::Num;
 use super::opendrive::{GeometryKind, Lane, LaneType, OpenDrive, RoadMark};
 use super::procedural_parts::{carriageway, center_lane, chain, constant, lane, road, section};
 use super::procedural_ramps::{lane_drop_map, off_ramp_map, on_ramp_map};
@@ -168,7 +169,8 @@ fn positive(name: &str, v: f64) -> Result<()> {
         Ok(())
     } else {
         Err(bad(format!(
-            "procedural map: {name} is {v:?}, expected a positive number"
+            "procedural map: {name} is {v}, expected a positive number",
+            v = Num(v)
         )))
     }
 }
@@ -181,14 +183,16 @@ fn check_common(lanes: usize, min_lanes: usize, lane_width: f64, length: f64) ->
     }
     if !(MIN_LANE_WIDTH..=10.0).contains(&lane_width) {
         return Err(bad(format!(
-            "procedural map: lane_width is {lane_width:?} m, expected a driving lane \
-             {MIN_LANE_WIDTH}-10 m wide"
+            "procedural map: lane_width is {lane_width} m, expected a driving lane \
+             {MIN_LANE_WIDTH}-10 m wide",
+            lane_width = Num(lane_width)
         )));
     }
     if !(MIN_LENGTH..=crate::map::MAX_ROAD_LENGTH).contains(&length) {
         return Err(bad(format!(
-            "procedural map: length is {length:?} m, expected {MIN_LENGTH} to {} m",
-            crate::map::MAX_ROAD_LENGTH
+            "procedural map: length is {length} m, expected {MIN_LENGTH} to {} m",
+            crate::map::MAX_ROAD_LENGTH,
+            length = Num(length)
         )));
     }
     Ok(())
@@ -210,7 +214,8 @@ fn check_fits(length: f64, parts: &[(&str, f64)]) -> Result<()> {
         // A lane that appears, ends or runs alongside over a few centimetres is no lane.
         if (name.contains("taper") || name.contains("lane_length")) && *v < MIN_TRANSITION {
             return Err(bad(format!(
-                "procedural map: {name} is {v:?} m, expected at least {MIN_TRANSITION} m"
+                "procedural map: {name} is {v} m, expected at least {MIN_TRANSITION} m",
+                v = Num(*v)
             )));
         }
     }
@@ -218,8 +223,10 @@ fn check_fits(length: f64, parts: &[(&str, f64)]) -> Result<()> {
     if total >= length {
         let names: Vec<&str> = parts.iter().map(|p| p.0).collect();
         return Err(bad(format!(
-            "procedural map: {} add up to {total:?} m, expected less than length {length:?} m",
-            names.join(" + ")
+            "procedural map: {} add up to {total} m, expected less than length {length} m",
+            names.join(" + "),
+            total = Num(total),
+            length = Num(length)
         )));
     }
     Ok(())
@@ -356,8 +363,9 @@ impl ProceduralMap {
                 )?;
                 if diverge_s + JUNCTION_LENGTH >= length {
                     return Err(bad(format!(
-                        "procedural map: diverge_s {diverge_s:?} m leaves no road after the junction, expected \
-                         less than length - {JUNCTION_LENGTH} m"
+                        "procedural map: diverge_s {diverge_s} m leaves no road after the junction, expected \
+                         less than length - {JUNCTION_LENGTH} m",
+                        diverge_s = Num(diverge_s)
                     )));
                 }
                 Ok(off_ramp_map(
@@ -405,16 +413,21 @@ fn curve_map(
     let width = check_layout(layout, lanes, lane_width)?;
     if !curvature.is_finite() || curvature.abs() * width >= 0.5 {
         return Err(bad(format!(
-            "procedural map: curvature {curvature:?} 1/m is too tight for a {width:?} m wide road \
-                 (expected |curvature| * width < 0.5)"
+            "procedural map: curvature {curvature} 1/m is too tight for a {width} m wide road \
+                 (expected |curvature| * width < 0.5)",
+            curvature = Num(curvature),
+            width = Num(width)
         )));
     }
     // The arc and the two clothoids turn the road by 0.45 * length * curvature.
     let turn = 0.45 * length * curvature.abs();
     if turn > std::f64::consts::PI {
         return Err(bad(format!(
-            "procedural map: curvature {curvature:?} 1/m over {length:?} m turns the road by \
-                 {turn:.2} rad, so it would cross itself; expected at most pi"
+            "procedural map: curvature {curvature} 1/m over {length} m turns the road by \
+                 {turn:.2} rad, so it would cross itself; expected at most pi",
+            curvature = Num(curvature),
+            length = Num(length),
+            turn = Num(turn)
         )));
     }
     let k = curvature;
@@ -449,7 +462,8 @@ fn check_layout(layout: Layout, lanes: usize, lane_width: f64) -> Result<f64> {
             positive("median_width", median_width)?;
             if median_width > MAX_MEDIAN {
                 return Err(bad(format!(
-                    "procedural map: median_width is {median_width:?} m, expected at most {MAX_MEDIAN} m"
+                    "procedural map: median_width is {median_width} m, expected at most {MAX_MEDIAN} m",
+                    median_width = Num(median_width)
                 )));
             }
             Ok(2.0 * side + median_width)

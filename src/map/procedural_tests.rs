@@ -365,3 +365,15 @@ fn unknown_keys_in_a_procedural_spec_are_named() {
     let err = serde_json::from_str::<ProceduralMap>(&typo).expect_err("layout typo");
     assert!(err.to_string().contains("median"), "{err}");
 }
+
+#[test]
+fn a_huge_parameter_is_quoted_with_an_exponent() {
+    let err = super::straight(3, 1e308, 500.0)
+        .expect_err("a 1e308 m lane")
+        .to_string();
+    assert!(err.contains("lane_width is 1e308 m"), "{err}");
+    let err = super::curve(3, 3.5, 500.0, 1e300)
+        .expect_err("a 1e-300 m radius")
+        .to_string();
+    assert!(err.contains("curvature 1e300 1/m"), "{err}");
+}
