@@ -109,6 +109,18 @@ impl TrainedPolicy {
         folder.starts_with("iter-").then(|| folder.to_string())
     }
 
+    /// The note a command prints when `given` (what the user named) is a run folder whose run
+    /// is not finished, so its newest checkpoint was loaded instead of a final policy.
+    pub fn unfinished_note(&self, given: &Path, doing: &str) -> Option<String> {
+        let checkpoint = self.checkpoint()?;
+        (self.path != given && self.path.parent() != Some(given)).then(|| {
+            format!(
+                "{}: the run is not finished; {doing} its newest checkpoint, {checkpoint}",
+                given.display()
+            )
+        })
+    }
+
     /// Loads the policy at `path` onto `device` (a plain, non-autodiff device).
     pub fn load(path: &Path, device: &burn::prelude::Device) -> Result<Self> {
         let (policy_path, config_path) = locate(path)?;

@@ -103,6 +103,9 @@ fn load_driver(args: &RenderArgs) -> Result<Option<Driver>> {
         Some(path) => {
             rtr::io::check_input_path(path, "--checkpoint")?;
             let trained = TrainedPolicy::load(path, &device)?;
+            if let Some(note) = trained.unfinished_note(path, "driving with") {
+                rtr::errln!("{note}");
+            }
             let name = format!("{} ({})", trained.method, path.display());
             (name, Entry::Trained(Box::new(trained)))
         }

@@ -42,6 +42,9 @@ pub fn run(args: CurateArgs) -> Result<()> {
     let _claim = claim_output_file(&args.out, "--out", &inputs, &SCENE_LIST)?;
     let device = args.backend.device(false)?;
     let trained = TrainedPolicy::load(&args.checkpoint, &device)?;
+    if let Some(note) = trained.unfinished_note(&args.checkpoint, "curating with") {
+        rtr::errln!("{note}");
+    }
     let dataset = args.data.load()?;
     let scenes = dataset.scenes(&SceneConfig::default())?.train;
     let config = EvalConfig {

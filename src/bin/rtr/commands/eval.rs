@@ -123,16 +123,10 @@ pub fn run(args: EvalArgs) -> Result<()> {
     let commonroad = commonroad_set(&args.commonroad, args.commonroad_speed_limit)?;
     let entries = load_entries(&args.checkpoints, args.idm, &device)?;
     for (path, entry) in args.checkpoints.iter().zip(&entries) {
-        // Given a run folder, not the checkpoint folder or policy file that was loaded.
         if let Entry::Trained(t) = entry
-            && let Some(checkpoint) = t.checkpoint()
-            && t.path != *path
-            && t.path.parent() != Some(path.as_path())
+            && let Some(note) = t.unfinished_note(path, "evaluating")
         {
-            rtr::errln!(
-                "{}: the run is not finished; evaluating its newest checkpoint, {checkpoint}",
-                path.display()
-            );
+            rtr::errln!("{note}");
         }
     }
     let dataset = args.data.load()?;
