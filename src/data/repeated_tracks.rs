@@ -278,8 +278,11 @@ fn alignment(
 
 /// Whether every sample `j` of `copy` is sample `first + k j` of `original`, moved, rotated
 /// and perhaps mirrored as a whole: the same speeds and acceleration commands, the same
-/// steering commands and heading changes (both negated in a mirror image), the same distances
-/// from the first sample. Says how the copy was made.
+/// steering commands and heading changes (both negated in a mirror image). Those alone make
+/// it a copy (the caller asks for a manoeuvre over [`PARTIAL_COPY_SAMPLES`] samples, which no
+/// two vehicles repeat to the millimetre per second); positions that are not the same
+/// distances from the first sample were scaled, noised or redrawn. Says how the copy was
+/// made.
 fn copied(
     original: &RecordedTrack,
     copy: &RecordedTrack,
@@ -295,12 +298,18 @@ fn copied(
                 && (mirror * original.steer_cmd[i] - copy.steer_cmd[j]).abs() <= SAME_ANGLE_RAD
                 && wrap_angle(mirror * turned - (copy.heading[j] - copy.heading[0])).abs()
                     <= 2.0 * SAME_ANGLE_RAD
-                && (distance(original, first, i) - distance(copy, 0, j)).abs() <= SAME_DISTANCE_M
         })
     };
     let mirror = [1.0, -1.0].into_iter().find(|&m| matches(m))?;
+    let same_distances = (0..copy.len()).all(|j| {
+        let i = first + k * j;
+        (distance(original, first, i) - distance(copy, 0, j)).abs() <= SAME_DISTANCE_M
+    });
     let last = first + k * (copy.len() - 1);
     let mut how = Vec::new();
+    if !same_distances {
+        how.push("its positions scaled, noised or redrawn".to_string());
+    }
     if first > 0 || last + 1 < original.len() {
         how.push(format!("cut from its samples {}-{}", first + 1, last + 1));
     }
@@ -409,6 +418,25 @@ mod tests {
                 "cut from its samples 11-59, one sample in 3 kept, mirrored, rotated by",
             ),
         ];
+        // Positions scaled by 1 %, or a cut with 5 cm of noise on its positions: the speeds,
+        // commands and heading changes still repeat the original's sample for sample.
+        let mut scaled = a.clone();
+        for k in 0..scaled.len() {
+            scaled.x[k] *= 1.01;
+            scaled.y[k] *= 1.01;
+        }
+        let mut noised = cut(&a, 20, 100);
+        for k in 0..noised.len() {
+            noised.x[k] += 0.05 * (k as f64 * 1.7).sin();
+            noised.y[k] += 0.05 * (k as f64 * 2.3).cos();
+        }
+        let cases = cases.into_iter().chain([
+            (scaled, "positions scaled, noised or redrawn"),
+            (
+                noised,
+                "positions scaled, noised or redrawn, cut from its samples 21-100",
+            ),
+        ]);
         for (mut copy, expected) in cases {
             copy.id = "b".into();
             let message = refused(&[a.clone(), copy]);
