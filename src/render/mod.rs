@@ -43,6 +43,9 @@ const GAP_M: f64 = 12.0;
 /// Widest picture drawn (px); beyond it the bitmap alone would take gigabytes.
 pub const MAX_WIDTH_PX: u32 = 20_000;
 
+/// Most pixels of one picture (width x height): 100 M, 300 MB as RGB.
+const MAX_PIXELS: f64 = 1e8;
+
 #[derive(Debug, Clone)]
 pub struct RenderOptions {
     /// Image width in pixels; the height follows the map's aspect ratio.
@@ -117,8 +120,12 @@ impl View {
             min[k] -= opts.margin_m;
             max[k] += opts.margin_m;
         }
-        let scale = opts.width_px as f64 / (max[0] - min[0]);
-        let height_px = ((max[1] - min[1]) * scale).ceil().max(1.0) as u32;
+        // A map far taller than wide (two roads a thousand kilometres apart) would need a
+        // picture millions of pixels tall at the asked width: it is drawn smaller instead,
+        // within the tallest picture the pixel budget allows at that width.
+        let tallest = (MAX_PIXELS / f64::from(opts.width_px)).min(f64::from(MAX_WIDTH_PX));
+        let scale = (f64::from(opts.width_px) / (max[0] - min[0])).min(tallest / (max[1] - min[1]));
+        let height_px = ((max[1] - min[1]) * scale).ceil().clamp(1.0, tallest) as u32;
         Ok(View {
             cos,
             sin,
@@ -428,6 +435,44 @@ fn dashes(line: &[[f64; 2]]) -> Vec<Vec<[f64; 2]>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Two roads a thousand kilometres apart: the picture is drawn within the pixel budget
+    /// (smaller), not allocated millions of pixels tall.
+    #[test]
+    fn a_map_far_taller_than_wide_fits_the_pixel_budget() {
+        let road = |id: &str, y: f64| {
+            format!(
+                r#"<road id="{id}" length="400" junction="-1"><link/>
+ <planView><geometry s="0" x="0" y="{y}" hdg="0" length="400"><line/></geometry></planView>
+ <lanes><laneSection s="0"><center><lane id="0" type="none"/></center><right>
+  <lane id="-1" type="driving"><width sOffset="0" a="3.5" b="0" c="0" d="0"/></lane>
+ </right></laneSection></lanes>
+</road>
+"#
+            )
+        };
+        let text = format!(
+            "<OpenDRIVE><header/>\n{}{}</OpenDRIVE>",
+            road("a", 0.0),
+            road("b", 1e6)
+        );
+        let map = Map::from_xodr_str(&text, "far.xodr").expect("two roads");
+        for width_px in [2400, MAX_WIDTH_PX] {
+            let opts = RenderOptions {
+                width_px,
+                ..RenderOptions::default()
+            };
+            let view = View::fit(&map, &opts).expect("a view");
+            assert!(view.height_px <= MAX_WIDTH_PX, "{}", view.height_px);
+            assert!(f64::from(view.height_px) * f64::from(width_px) <= MAX_PIXELS);
+            // Both roads are inside the picture.
+            for y in [0.0, 1e6] {
+                let (x_px, y_px) = view.px([200.0, y]);
+                assert!((0..=width_px as i32).contains(&x_px), "{x_px}");
+                assert!((0..=view.height_px as i32).contains(&y_px), "{y_px}");
+            }
+        }
+    }
 
     #[test]
     fn dashes_follow_the_german_pattern() {
