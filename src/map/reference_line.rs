@@ -153,7 +153,9 @@ impl Geometry {
             GeometryKind::Poly3 { a, b, c, d } => {
                 let coef = [*a, *b, *c, *d];
                 let speed = |u: f64| cubic(&coef, u).1.hypot(1.0);
-                let arc = |u: f64| integrate(0.0, u, (u.abs() / 10.0).ceil() as usize, speed);
+                // Bounded pieces: a cubic read from a file may send Newton's u far out.
+                let arc =
+                    |u: f64| integrate(0.0, u, (u.abs() / 10.0).ceil().min(1e5) as usize, speed);
                 let u = invert_arc_length(ds, ds, arc, speed);
                 let (v, dv, ddv) = cubic(&coef, u);
                 let k = ddv / (1.0 + dv * dv).powf(1.5);
@@ -165,8 +167,14 @@ impl Geometry {
                     PRange::Normalized => 1.0,
                 };
                 let speed = |p: f64| cubic(u, p).1.hypot(cubic(v, p).1);
-                let arc =
-                    |p: f64| integrate(0.0, p, (p.abs() / p_max * 16.0).ceil() as usize, speed);
+                let arc = |p: f64| {
+                    integrate(
+                        0.0,
+                        p,
+                        (p.abs() / p_max * 16.0).ceil().min(1e5) as usize,
+                        speed,
+                    )
+                };
                 let guess = if self.length > 0.0 {
                     ds / self.length * p_max
                 } else {

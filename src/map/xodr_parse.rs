@@ -97,16 +97,24 @@ fn polynomial_curvature(kind: &GeometryKind, length: f64) -> Option<f64> {
         // The road follows the cubic until it has run `length` metres, at some u <= length:
         // find that u, then sample the curvature up to it.
         GeometryKind::Poly3 { b, c, d, .. } => {
+            // Walked in steps of arc length, not of u: a cubic that turns to near the
+            // vertical within micrometres of u (a huge `d`) does so between any two u
+            // samples, but its turn per metre of road is the curvature either way.
             let slope = |u: f64| b + 2.0 * c * u + 3.0 * d * u * u;
             let step = length / 4096.0;
-            let (mut u, mut travelled) = (0.0, 0.0);
-            while travelled < length && u < length {
-                travelled += step * (1.0 + slope(u + 0.5 * step).powi(2)).sqrt();
-                u += step;
+            let (mut u, mut steepest) = (0.0_f64, 0.0_f64);
+            for _ in 0..4096 {
+                let heading = slope(u).atan();
+                u += step * heading.cos();
+                let turn = (slope(u).atan() - heading).abs();
+                steepest = steepest.max(turn / step);
             }
-            Some(max_over(u, &|u| {
-                curvature(1.0, slope(u), 0.0, 2.0 * c + 6.0 * d * u)
-            }))
+            let sampled = max_over(u, &|u| curvature(1.0, slope(u), 0.0, 2.0 * c + 6.0 * d * u));
+            Some(if steepest.is_finite() {
+                sampled.max(steepest)
+            } else {
+                f64::INFINITY
+            })
         }
         GeometryKind::ParamPoly3 { u, v, p_range } => {
             let range = match p_range {
