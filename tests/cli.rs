@@ -601,15 +601,7 @@ fn sim2real_names_the_line_of_a_bad_recording() {
 #[test]
 fn eval_prints_the_table_row_and_writes_the_documented_json() {
     let dir = tempfile::tempdir().expect("temp dir");
-    let run_file = dir.path().join("tiny.toml");
-    std::fs::write(
-        &run_file,
-        "method = \"IL\"\nseed = 3\n[optimizer]\nlearning_rate = 1e-3\nepochs = 1\n\
-         epoch_scenes = 2\n[imitation]\nminibatch = 2\n[data]\nnominal_limit = 4\n\
-         max_rollout_steps = 4\n[model]\nhidden = 16\nlane_layers = 1\ninteraction_rounds = 1\n\
-         history_blocks = 1\nhead_hidden = [16]\n",
-    )
-    .expect("write");
+    let run_file = tiny_run_file(dir.path(), 1, "");
     let run = dir.path().join("run");
     let trained = rtr(&[
         "train",
@@ -1295,15 +1287,7 @@ fn a_probe_into_an_earlier_probe_run_is_refused_by_its_out_folder() {
 #[test]
 fn a_checkpoint_that_cannot_be_written_leaves_curves_that_match_the_last_one() {
     let dir = tempfile::tempdir().expect("temp dir");
-    let run_file = dir.path().join("tiny.toml");
-    std::fs::write(
-        &run_file,
-        "method = \"IL\"\nseed = 3\n[optimizer]\nlearning_rate = 1e-3\nepochs = 3\n\
-         epoch_scenes = 2\n[imitation]\nminibatch = 2\n[data]\nnominal_limit = 4\n\
-         max_rollout_steps = 4\n[model]\nhidden = 16\nlane_layers = 1\ninteraction_rounds = 1\n\
-         history_blocks = 1\nhead_hidden = [16]\n",
-    )
-    .expect("write");
+    let run_file = tiny_run_file(dir.path(), 3, "");
     let run = dir.path().join("run");
     let (config, out) = (run_file.to_str().unwrap(), run.to_str().unwrap());
     let first = rtr(&[
@@ -1358,15 +1342,7 @@ fn a_checkpoint_that_cannot_be_written_leaves_curves_that_match_the_last_one() {
 #[test]
 fn model_average_refuses_two_trainings_of_one_run_file() {
     let dir = tempfile::tempdir().expect("temp dir");
-    let run_file = dir.path().join("tiny.toml");
-    std::fs::write(
-        &run_file,
-        "method = \"IL\"\nseed = 3\n[optimizer]\nlearning_rate = 1e-3\nepochs = 2\n\
-         epoch_scenes = 2\n[imitation]\nminibatch = 2\n[data]\nnominal_limit = 4\n\
-         max_rollout_steps = 4\n[model]\nhidden = 16\nlane_layers = 1\ninteraction_rounds = 1\n\
-         history_blocks = 1\nhead_hidden = [16]\n[run]\nkeep_checkpoints = 2\n",
-    )
-    .expect("write");
+    let run_file = tiny_run_file(dir.path(), 2, "[run]\nkeep_checkpoints = 2\n");
     let config = run_file.to_str().unwrap();
     let runs = ["a", "b"].map(|name| dir.path().join(name));
     for run in &runs {
@@ -1413,4 +1389,21 @@ fn model_average_refuses_two_trainings_of_one_run_file() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
+}
+
+/// A run file of a few seconds' IL training on the tiny network, `epochs` long, with `extra`
+/// appended, written as `dir/tiny.toml`.
+fn tiny_run_file(dir: &std::path::Path, epochs: usize, extra: &str) -> std::path::PathBuf {
+    let path = dir.join("tiny.toml");
+    std::fs::write(
+        &path,
+        format!(
+            "method = \"IL\"\nseed = 3\n[optimizer]\nlearning_rate = 1e-3\nepochs = {epochs}\n\
+             epoch_scenes = 2\n[imitation]\nminibatch = 2\n[data]\nnominal_limit = 4\n\
+             max_rollout_steps = 4\n[model]\nhidden = 16\nlane_layers = 1\n\
+             interaction_rounds = 1\nhistory_blocks = 1\nhead_hidden = [16]\n{extra}"
+        ),
+    )
+    .expect("write");
+    path
 }
